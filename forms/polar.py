@@ -1,0 +1,58 @@
+"""Polar rotation R* of M = F S with an exact first derivative, at quadrature points.
+
+A closed-form polar decomposition through eigenvalues has NaN derivatives at
+repeated singular values (the rest state included). Instead R0 = polar(M) is
+computed per quadrature point by a batched SVD (``polar_rotation``) before each
+assembly and stored in a quadrature-element function; the UFL expression
+
+    R = R0 (I + [w]x),   w = 2 K^-1 axial(skew(R0^T M)),
+    K = tr(H) I - H,     H = sym(R0^T M)
+
+has the value R0 (at R0 = polar(M), R0^T M is symmetric, so w = 0) and the
+exact first derivative: with M = R U, dM = dR U + R dU and dR = R [dw]x one has
+skew(R^T dM) = ([dw]x U + U [dw]x)/2 = [K dw / 2]x, so dw = 2 K^-1 axial(skew(R^T dM)).
+
+Rotation variant: for det M < 0 (inverted elements) R* = U diag(1, 1, -1) V^T
+from M = U Sigma V^T with ascending-order last (smallest) singular value negated,
+so R* is always a proper rotation (det R* = +1), never a reflection.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import ufl
+
+
+def polar_rotation(M: np.ndarray) -> np.ndarray:
+    """Rotation R* = argmin_{R in SO(3)} ||M - R||_F of a batch M of shape (..., 3, 3).
+
+    R* = U diag(1, 1, sign det(U V^T)) V^T from the SVD M = U Sigma V^T (singular
+    values in descending order, so the flipped one is the smallest).
+    """
+    U, _, Vt = np.linalg.svd(M)
+    sign = np.sign(np.linalg.det(U @ Vt))
+    sign[sign == 0] = 1.0
+    U[..., :, 2] *= sign[..., None]
+    return U @ Vt
+
+
+def skew_matrix(w: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """[w]x, the matrix with [w]x v = w x v."""
+    return ufl.as_matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+
+
+def axial(W: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """axial(W) = (W21, W02, W10), the inverse of skew_matrix on skew-symmetric W."""
+    return ufl.as_vector([W[2, 1], W[0, 2], W[1, 0]])
+
+
+def linearised_rotation(M: ufl.core.expr.Expr, R0: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """R = R0 (I + [w]x), w = 2 K^-1 axial(skew(R0^T M)), K = tr(H) I - H, H = sym(R0^T M).
+
+    Equal to R0 = polar(M) and with the exact derivative dR*/dM when R0 is current.
+    """
+    A = R0.T * M
+    H = ufl.sym(A)
+    K = ufl.tr(H) * ufl.Identity(3) - H
+    w = 2.0 * ufl.inv(K) * axial(ufl.skew(A))
+    return R0 * (ufl.Identity(3) + skew_matrix(w))

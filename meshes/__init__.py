@@ -1,0 +1,78 @@
+"""Tetrahedral meshes with named regions and boundaries, built on one rank.
+
+Every mesh source produces a :class:`MeshData` (plain numpy arrays plus
+name -> tag maps); distributing it over MPI ranks is left to the caller.
+
+Generators (all return :class:`MeshData`; see each function for its parameters
+and physical group names):
+
+========== ================================================ =======================
+name       physical volumes                                  physical surfaces
+========== ================================================ =======================
+box        body                                              xmin xmax ymin ymax zmin zmax
+cylinder   body                                              bottom top lateral
+cook       body                                              left right bottom top front back
+fusiform   belly tendon_origin tendon_insertion              origin insertion surface
+========== ================================================ =======================
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from typing import Any
+
+from meshes._validate import ParameterError
+from meshes.box import box
+from meshes.cook import cook
+from meshes.cylinder import cylinder
+from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
+from meshes.fusiform import fusiform
+
+__all__ = [
+    "GENERATORS",
+    "MeshData",
+    "ParameterError",
+    "box",
+    "cook",
+    "cylinder",
+    "from_gmsh_model",
+    "fusiform",
+    "generate",
+    "generator_parameters",
+    "read_msh",
+    "write_msh",
+]
+
+#: Mesh generators by name; each returns a :class:`MeshData`.
+GENERATORS: dict[str, Callable[..., MeshData]] = {
+    "box": box,
+    "cylinder": cylinder,
+    "cook": cook,
+    "fusiform": fusiform,
+}
+
+
+def generator_parameters(name: str) -> dict[str, Any]:
+    """Parameter names of generator ``name`` with their default values."""
+    if name not in GENERATORS:
+        raise ParameterError(f"unknown mesh generator {name!r}; available: {', '.join(sorted(GENERATORS))}")
+    signature = inspect.signature(GENERATORS[name])
+    return {key: p.default for key, p in signature.parameters.items()}
+
+
+def generate(name: str, **params: Any) -> MeshData:
+    """Run the generator ``name`` with keyword parameters ``params``.
+
+    Raises
+    ------
+    ParameterError
+        (a :class:`ValueError`) for an unknown generator, an unknown parameter, or
+        a parameter of the wrong type or out of range; the message names the
+        generator and the parameter.
+    """
+    accepted = generator_parameters(name)
+    unknown = sorted(set(params) - set(accepted))
+    if unknown:
+        raise ParameterError(f"{name}: unknown parameter {unknown[0]!r}; accepted: {', '.join(accepted)}")
+    return GENERATORS[name](**params)

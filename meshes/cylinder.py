@@ -1,0 +1,97 @@
+"""Unstructured tetrahedral mesh of a circular cylinder (gmsh OpenCASCADE)."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import gmsh
+
+from meshes._gmsh import gmsh_session
+from meshes._validate import positive_float
+from meshes.data import MeshData, from_gmsh_model
+
+__all__ = ["CURVATURE_ELEMENTS", "CYLINDER_FACES", "build_cylinder_model", "cylinder", "cylinder_options"]
+
+logger = logging.getLogger(__name__)
+
+#: Boundary names (facet tags 1..3) of :func:`cylinder`.
+CYLINDER_FACES = ("bottom", "top", "lateral")
+#: Curved surfaces get at least this many elements per 2*pi radians of curvature
+#: (gmsh ``Mesh.MeshSizeFromCurvature``), whatever ``size`` is: keeps the
+#: faceting volume error at about 2 % on coarse meshes.
+CURVATURE_ELEMENTS = 16
+
+
+def _classify_face(z_center: float, length: float) -> str:
+    """Name of a cylinder face from the z coordinate of its centre of mass."""
+    tol = 1e-6 * length
+    if abs(z_center) < tol:
+        return "bottom"
+    if abs(z_center - length) < tol:
+        return "top"
+    return "lateral"
+
+
+def build_cylinder_model(radius: float, length: float) -> None:
+    """Create the cylinder geometry and its physical groups in the current gmsh model (no meshing)."""
+    occ = gmsh.model.occ
+    volume = occ.addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, length, radius)
+    occ.synchronize()
+    faces: dict[str, list[int]] = {name: [] for name in CYLINDER_FACES}
+    for _, surface in gmsh.model.getBoundary([(3, volume)], combined=False, oriented=False):
+        z_center = occ.getCenterOfMass(2, surface)[2]
+        faces[_classify_face(z_center, length)].append(surface)
+    gmsh.model.addPhysicalGroup(3, [volume], 1)
+    gmsh.model.setPhysicalName(3, 1, "body")
+    for tag, name in enumerate(CYLINDER_FACES, start=1):
+        gmsh.model.addPhysicalGroup(2, faces[name], tag)
+        gmsh.model.setPhysicalName(2, tag, name)
+
+
+def cylinder_options(size: float) -> dict[str, float]:
+    """gmsh options used to mesh the cylinder with target element size ``size``."""
+    return {
+        "Mesh.MeshSizeMax": size,
+        "Mesh.MeshSizeMin": 0.0,
+        "Mesh.MeshSizeFromCurvature": CURVATURE_ELEMENTS,
+    }
+
+
+def cylinder(radius: float = 0.5, length: float = 2.0, size: float = 0.25) -> MeshData:
+    """Mesh the cylinder ``x^2 + y^2 <= radius^2, 0 <= z <= length`` with linear tetrahedra.
+
+    Parameters
+    ----------
+    radius:
+        Cylinder radius, > 0.
+    length:
+        Cylinder length along z, > 0.
+    size:
+        Maximum element size, > 0; curved surfaces are refined to
+        :data:`CURVATURE_ELEMENTS` elements per 2 pi radians.
+
+    Returns
+    -------
+    MeshData
+        Volume ``body`` (tag 1); faces ``bottom`` (z=0), ``top`` (z=length) and
+        ``lateral`` (tags 1..3).
+    """
+    r = positive_float("cylinder", "radius", radius)
+    h = positive_float("cylinder", "length", length)
+    lc = positive_float("cylinder", "size", size)
+    start = time.perf_counter()
+    with gmsh_session(cylinder_options(lc), name="cylinder"):
+        build_cylinder_model(r, h)
+        gmsh.model.mesh.generate(3)
+        mesh = from_gmsh_model(gmsh.model)
+    logger.info(
+        "cylinder(radius=%g, length=%g, size=%g): %d tets, %d points in %.2f s",
+        r,
+        h,
+        lc,
+        mesh.num_cells,
+        mesh.num_points,
+        time.perf_counter() - start,
+    )
+    return mesh

@@ -1,0 +1,372 @@
+"""Run configuration: a TOML file parsed into typed dataclasses, every key checked.
+
+The layout is shared/design/run-contract.md. Any error (unknown key, wrong
+type, value out of range, unknown name) raises ConfigError with a one-line
+message that starts with the offending key, e.g.
+``material[0].nu: 0.5 is out of range, must be in (-1, 0.5)``.
+Names of regions and boundaries are checked against the mesh later
+(model.setup), still before any solve.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import forms
+
+
+class ConfigError(ValueError):
+    """A configuration error; the message names the offending key."""
+
+
+BOUNDARY_TYPES = ("displacement", "traction", "pressure")
+FORMULATIONS = ("displacement", "mixed")
+
+
+@dataclass(frozen=True)
+class MeshConfig:
+    generator: str | None = None
+    file: Path | None = None
+    params: dict[str, Any] = field(default_factory=dict)
+    regions: dict[str, int] = field(default_factory=dict)
+    boundaries: dict[str, int] = field(default_factory=dict)
+    cell_data: str | None = None
+    facet_data: str | None = None
+
+
+@dataclass(frozen=True)
+class DiscretizationConfig:
+    degree: int = 1
+    quadrature_degree: int = 2
+    formulation: str = "displacement"
+
+
+@dataclass(frozen=True)
+class MaterialConfig:
+    region: str
+    law: forms.Law
+
+
+@dataclass(frozen=True)
+class BoundaryConfig:
+    on: str
+    type: str
+    components: tuple[int, ...] = (0, 1, 2)
+    value: tuple[float, ...] = ()
+    expression: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class BodyForceConfig:
+    region: str
+    value: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class LoadingConfig:
+    steps: int = 1
+    max_cutbacks: int = 8
+    growth: float = 1.5
+
+
+@dataclass(frozen=True)
+class ProbeConfig:
+    name: str
+    point: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    dir: Path = Path("results")
+    xdmf: bool = True
+    vtu: bool = True
+    png: bool = True
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    mesh: MeshConfig
+    discretization: DiscretizationConfig
+    materials: tuple[MaterialConfig, ...]
+    boundaries: tuple[BoundaryConfig, ...]
+    body_forces: tuple[BodyForceConfig, ...]
+    loading: LoadingConfig
+    petsc_options: dict[str, str | int | float | bool]
+    probes: tuple[ProbeConfig, ...]
+    output: OutputConfig
+
+
+# --- small checkers: each raises ConfigError naming the key ---------------------------------------
+
+def _fail(key: str, message: str) -> None:
+    raise ConfigError(f"{key}: {message}")
+
+
+def _table(value: Any, key: str) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        _fail(key, f"must be a table, got {type(value).__name__}")
+    return value
+
+
+def _tables(value: Any, key: str) -> list[dict[str, Any]]:
+    if isinstance(value, dict):
+        _fail(key, f"must be an array of tables ([[{key}]]), got a single table ([{key}])")
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        _fail(key, "must be an array of tables")
+    return value
+
+
+def _known(table: dict[str, Any], allowed: set[str], key: str) -> None:
+    for k in table:
+        if k not in allowed:
+            _fail(f"{key}.{k}" if key else k, f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+
+def _number(value: Any, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        _fail(key, f"must be a number, got {value!r}")
+    if not math.isfinite(value):
+        _fail(key, f"must be finite, got {value!r}")
+    return float(value)
+
+
+def _integer(value: Any, key: str, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        _fail(key, f"must be an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        _fail(key, f"{value} is out of range, must be >= {minimum}")
+    return value
+
+
+def _string(value: Any, key: str, choices: tuple[str, ...] | None = None) -> str:
+    if not isinstance(value, str):
+        _fail(key, f"must be a string, got {value!r}")
+    if choices is not None and value not in choices:
+        _fail(key, f"{value!r} is not one of {', '.join(choices)}")
+    return value
+
+
+def _boolean(value: Any, key: str) -> bool:
+    if not isinstance(value, bool):
+        _fail(key, f"must be true or false, got {value!r}")
+    return value
+
+
+def _vector(value: Any, key: str, length: int | None = 3) -> tuple[float, ...]:
+    if not isinstance(value, list):
+        _fail(key, f"must be an array of numbers, got {value!r}")
+    if length is not None and len(value) != length:
+        _fail(key, f"must have {length} entries, got {len(value)}")
+    return tuple(_number(v, f"{key}[{i}]") for i, v in enumerate(value))
+
+
+def _name_map(value: Any, key: str) -> dict[str, int]:
+    table = _table(value, key)
+    return {name: _integer(tag, f"{key}.{name}") for name, tag in table.items()}
+
+
+# --- sections -------------------------------------------------------------------------------------
+
+_MESH_KEYS = {"generator", "file", "regions", "boundaries", "cell_data", "facet_data"}
+
+
+def _mesh(raw: dict[str, Any], base: Path) -> MeshConfig:
+    from meshes import GENERATORS
+
+    has_gen, has_file = "generator" in raw, "file" in raw
+    if has_gen == has_file:
+        _fail("mesh", "give exactly one of mesh.generator or mesh.file")
+    regions = _name_map(raw.get("regions", {}), "mesh.regions")
+    boundaries = _name_map(raw.get("boundaries", {}), "mesh.boundaries")
+    cell_data = _string(raw["cell_data"], "mesh.cell_data") if "cell_data" in raw else None
+    facet_data = _string(raw["facet_data"], "mesh.facet_data") if "facet_data" in raw else None
+    params = {k: v for k, v in raw.items() if k not in _MESH_KEYS}
+    if has_gen:
+        gen = _string(raw["generator"], "mesh.generator", tuple(sorted(GENERATORS)))
+        for k in ("regions", "boundaries", "cell_data", "facet_data"):
+            if k in raw:
+                _fail(f"mesh.{k}", "only applies to mesh.file")
+        return MeshConfig(generator=gen, params=params)
+    if params:
+        _fail(f"mesh.{sorted(params)[0]}", "unknown key for a mesh file (allowed: file, regions, boundaries, "
+              "cell_data, facet_data)")
+    path = Path(_string(raw["file"], "mesh.file"))
+    if not path.is_absolute():
+        path = base / path
+    if not path.is_file():
+        _fail("mesh.file", f"no such file: {path}")
+    return MeshConfig(file=path, regions=regions, boundaries=boundaries, cell_data=cell_data,
+                      facet_data=facet_data)
+
+
+def _discretization(raw: dict[str, Any]) -> DiscretizationConfig:
+    _known(raw, {"degree", "quadrature_degree", "formulation"}, "discretization")
+    degree = _integer(raw.get("degree", 1), "discretization.degree", 1)
+    if degree > 3:
+        _fail("discretization.degree", f"{degree} is out of range, must be 1, 2 or 3")
+    quad = _integer(raw.get("quadrature_degree", 2 * degree), "discretization.quadrature_degree", 1)
+    if quad > 12:
+        _fail("discretization.quadrature_degree", f"{quad} is out of range, must be <= 12")
+    formulation = _string(raw.get("formulation", "displacement"), "discretization.formulation", FORMULATIONS)
+    if formulation == "mixed" and degree < 2:
+        _fail("discretization.formulation", "mixed (Taylor-Hood) needs degree >= 2")
+    return DiscretizationConfig(degree, quad, formulation)
+
+
+def _material(raw: dict[str, Any], key: str) -> MaterialConfig:
+    region = _string(raw.get("region", "all"), f"{key}.region")
+    if "law" not in raw:
+        _fail(f"{key}.law", f"missing (choose from {', '.join(sorted(forms.LAWS))})")
+    law_name = _string(raw["law"], f"{key}.law", tuple(sorted(forms.LAWS)))
+    params = {k: v for k, v in raw.items() if k not in ("region", "law")}
+    for k, v in params.items():
+        _number(v, f"{key}.{k}")
+    try:
+        law = forms.make_law(law_name, **params)
+    except forms.ParameterError as err:
+        message = str(err).removeprefix(f"{law_name}: ")
+        param = next((p for p in params if message.startswith((f"{p} ", f"unknown parameter {p!r}"))), None)
+        _fail(f"{key}.{param}" if param else key, f"{law_name}: {message}")
+    return MaterialConfig(region, law)
+
+
+def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
+    _known(raw, {"on", "type", "components", "value", "expression"}, key)
+    if "on" not in raw:
+        _fail(f"{key}.on", "missing (the name of a boundary)")
+    on = _string(raw["on"], f"{key}.on")
+    kind = _string(raw.get("type", ""), f"{key}.type", BOUNDARY_TYPES)
+    if kind == "displacement":
+        comps = raw.get("components", [0, 1, 2])
+        if not isinstance(comps, list) or not comps:
+            _fail(f"{key}.components", f"must be a non-empty array of 0, 1, 2, got {comps!r}")
+        comps = tuple(_integer(c, f"{key}.components[{i}]") for i, c in enumerate(comps))
+        if any(c not in (0, 1, 2) for c in comps) or len(set(comps)) != len(comps):
+            _fail(f"{key}.components", f"{list(comps)} must be distinct entries of 0, 1, 2")
+        if ("value" in raw) == ("expression" in raw):
+            _fail(f"{key}.value", "give exactly one of value or expression")
+        if "value" in raw:
+            value = _vector(raw["value"], f"{key}.value", len(comps))
+            return BoundaryConfig(on, kind, comps, value=value)
+        expr = raw["expression"]
+        if not isinstance(expr, list) or len(expr) != len(comps):
+            _fail(f"{key}.expression", f"must be an array of {len(comps)} strings (one per component)")
+        exprs = tuple(_string(e, f"{key}.expression[{i}]") for i, e in enumerate(expr))
+        from model.expressions import compile_expression
+
+        for i, e in enumerate(exprs):
+            try:
+                compile_expression(e)
+            except ValueError as err:
+                _fail(f"{key}.expression[{i}]", str(err))
+        return BoundaryConfig(on, kind, comps, expression=exprs)
+    for k in ("components", "expression"):
+        if k in raw:
+            _fail(f"{key}.{k}", f"only applies to type = \"displacement\", not {kind!r}")
+    if "value" not in raw:
+        _fail(f"{key}.value", "missing")
+    if kind == "traction":
+        return BoundaryConfig(on, kind, (), value=_vector(raw["value"], f"{key}.value", 3))
+    value = raw["value"]
+    if isinstance(value, list) and len(value) == 1:
+        value = value[0]
+    return BoundaryConfig(on, kind, (), value=(_number(value, f"{key}.value"),))
+
+
+def _body_force(raw: dict[str, Any], key: str) -> BodyForceConfig:
+    _known(raw, {"region", "value"}, key)
+    if "value" not in raw:
+        _fail(f"{key}.value", "missing (force per unit reference volume, 3 numbers)")
+    value = _vector(raw["value"], f"{key}.value", 3)
+    return BodyForceConfig(_string(raw.get("region", "all"), f"{key}.region"), value)  # type: ignore[arg-type]
+
+
+def _loading(raw: dict[str, Any]) -> LoadingConfig:
+    _known(raw, {"steps", "max_cutbacks", "growth"}, "loading")
+    steps = _integer(raw.get("steps", 1), "loading.steps", 1)
+    cut = _integer(raw.get("max_cutbacks", 8), "loading.max_cutbacks", 0)
+    growth = _number(raw.get("growth", 1.5), "loading.growth")
+    if growth < 1.0:
+        _fail("loading.growth", f"{growth} is out of range, must be >= 1")
+    return LoadingConfig(steps, cut, growth)
+
+
+def _solver(raw: dict[str, Any]) -> dict[str, str | int | float | bool]:
+    _known(raw, {"petsc_options"}, "solver")
+    opts = _table(raw.get("petsc_options", {}), "solver.petsc_options")
+    for k, v in opts.items():
+        if not isinstance(v, (str, int, float, bool)):
+            _fail(f"solver.petsc_options.{k}", f"must be a string, number or boolean, got {v!r}")
+        if k.startswith("-"):
+            _fail(f"solver.petsc_options.{k}", "write the option without its leading '-'")
+    return dict(opts)
+
+
+def _probe(raw: dict[str, Any], key: str) -> ProbeConfig:
+    _known(raw, {"name", "point"}, key)
+    if "name" not in raw or "point" not in raw:
+        _fail(f"{key}.{'name' if 'name' not in raw else 'point'}", "missing")
+    return ProbeConfig(_string(raw["name"], f"{key}.name"), _vector(raw["point"], f"{key}.point", 3))  # type: ignore[arg-type]
+
+
+def _output(raw: dict[str, Any]) -> OutputConfig:
+    _known(raw, {"dir", "xdmf", "vtu", "png"}, "output")
+    return OutputConfig(
+        dir=Path(_string(raw.get("dir", "results"), "output.dir")),
+        xdmf=_boolean(raw.get("xdmf", True), "output.xdmf"),
+        vtu=_boolean(raw.get("vtu", True), "output.vtu"),
+        png=_boolean(raw.get("png", True), "output.png"),
+    )
+
+
+SECTIONS = {"mesh", "discretization", "material", "boundary", "body_force", "loading", "solver", "probe", "output"}
+
+
+def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
+    """Check a parsed TOML document and build the RunConfig (file paths relative to ``base``)."""
+    _known(raw, SECTIONS, "")
+    if "mesh" not in raw:
+        _fail("mesh", "missing section [mesh]")
+    if "material" not in raw:
+        _fail("material", "missing: at least one [[material]]")
+    mesh = _mesh(_table(raw["mesh"], "mesh"), base)
+    disc = _discretization(_table(raw.get("discretization", {}), "discretization"))
+    materials = tuple(_material(m, f"material[{i}]") for i, m in enumerate(_tables(raw["material"], "material")))
+    if not materials:
+        _fail("material", "at least one [[material]] is needed")
+    boundaries = tuple(_boundary(b, f"boundary[{i}]")
+                       for i, b in enumerate(_tables(raw.get("boundary", []), "boundary")))
+    body = tuple(_body_force(b, f"body_force[{i}]")
+                 for i, b in enumerate(_tables(raw.get("body_force", []), "body_force")))
+    probes = tuple(_probe(p, f"probe[{i}]") for i, p in enumerate(_tables(raw.get("probe", []), "probe")))
+    names = [p.name for p in probes]
+    for i, n in enumerate(names):
+        if n in names[:i]:
+            _fail(f"probe[{i}].name", f"{n!r} is used twice")
+    return RunConfig(
+        mesh=mesh,
+        discretization=disc,
+        materials=materials,
+        boundaries=boundaries,
+        body_forces=body,
+        loading=_loading(_table(raw.get("loading", {}), "loading")),
+        petsc_options=_solver(_table(raw.get("solver", {}), "solver")),
+        probes=probes,
+        output=_output(_table(raw.get("output", {}), "output")),
+    )
+
+
+def load(path: str | Path) -> RunConfig:
+    """Read and check a TOML configuration file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"config: no such file: {path}")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"config: {path}: invalid TOML: {err}") from None
+    return parse(raw, path.parent)

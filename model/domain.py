@@ -1,0 +1,192 @@
+"""The computational domain: a distributed dolfinx mesh with named regions and boundaries.
+
+Every mesh source (built-in generator, gmsh .msh, any tetrahedral mesh meshio
+reads) is first turned into a meshes.MeshData on rank 0, then distributed here.
+Named groups may overlap (a facet in two physical surfaces): each distinct set
+of names an entity belongs to gets its own integer code, and a name maps to the
+tuple of codes that contain it, which is what ufl.Measure accepts as subdomain id.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import cpp as _cpp
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+
+from meshes import MeshData
+
+
+@dataclass
+class Domain:
+    """A mesh with cell and facet tags and the codes of each named region and boundary."""
+
+    mesh: dmesh.Mesh
+    cell_tags: dmesh.MeshTagsMetaClass
+    facet_tags: dmesh.MeshTagsMetaClass
+    regions: dict[str, tuple[int, ...]]
+    boundaries: dict[str, tuple[int, ...]]
+
+    def region_cells(self, name: str) -> np.ndarray:
+        """Local cells (owned and ghost) of a region; "all" is every cell."""
+        if name == "all":
+            imap = self.mesh.topology.index_map(self.mesh.topology.dim)
+            return np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+        return self.cell_tags.indices[np.isin(self.cell_tags.values, self.regions[name])]
+
+    def boundary_facets(self, name: str) -> np.ndarray:
+        """Local facets of a named boundary."""
+        return self.facet_tags.indices[np.isin(self.facet_tags.values, self.boundaries[name])]
+
+
+def _combine(entities: np.ndarray, tags: np.ndarray, names: dict[str, int]
+             ) -> tuple[np.ndarray, np.ndarray, dict[str, tuple[int, ...]]]:
+    """Unique entities, a code per entity for its set of tags, and name -> codes containing its tag."""
+    if entities.shape[0] == 0:
+        return entities, tags.astype(np.int32), {n: () for n in names}
+    key = np.sort(entities, axis=1)
+    unique, inverse = np.unique(key, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    sets: list[set[int]] = [set() for _ in range(unique.shape[0])]
+    for i, t in zip(inverse, tags):
+        sets[i].add(int(t))
+    combos: dict[frozenset[int], int] = {}
+    codes = np.empty(unique.shape[0], dtype=np.int32)
+    for i, s in enumerate(sets):
+        codes[i] = combos.setdefault(frozenset(s), len(combos) + 1)
+    by_name = {n: tuple(sorted(c for s, c in combos.items() if t in s)) for n, t in names.items()}
+    # keep the original vertex order of the first occurrence of each entity
+    first = np.zeros(unique.shape[0], dtype=np.int64)
+    first[inverse[::-1]] = np.arange(len(inverse))[::-1]
+    return entities[first], codes, by_name
+
+
+def build_domain(comm: MPI.Comm, data: MeshData | None, root: int = 0) -> Domain:
+    """Distribute a MeshData held on rank ``root`` (None elsewhere) into a Domain."""
+    if comm.rank == root:
+        assert data is not None
+        cells, cell_codes, regions = _combine(data.cells, data.cell_tags, data.region_names)
+        facets, facet_codes, boundaries = _combine(data.facets, data.facet_tags, data.boundary_names)
+        points = np.ascontiguousarray(data.points[:, :3], dtype=np.float64)
+        comm.bcast((regions, boundaries), root=root)
+    else:
+        regions, boundaries = comm.bcast(None, root=root)
+        cells = np.empty((0, 4), dtype=np.int64)
+        facets = np.empty((0, 3), dtype=np.int64)
+        cell_codes = np.empty(0, dtype=np.int32)
+        facet_codes = np.empty(0, dtype=np.int32)
+        points = np.empty((0, 3), dtype=np.float64)
+    element = ufl.VectorElement("Lagrange", ufl.tetrahedron, 1)
+    msh = dmesh.create_mesh(comm, cells.astype(np.int64), points, ufl.Mesh(element))
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim, 0)
+    entities, values = _cpp.io.distribute_entity_data(msh._mesh, tdim, cells.astype(np.int64), cell_codes)
+    adj = _cpp.graph.AdjacencyList_int32(entities)
+    ct = dmesh.meshtags_from_entities(msh, tdim, adj, values.astype(np.int32))
+    ct.name = "regions"
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    msh.topology.create_connectivity(tdim - 1, 0)
+    entities, values = _cpp.io.distribute_entity_data(msh._mesh, tdim - 1, facets.astype(np.int64), facet_codes)
+    adj = _cpp.graph.AdjacencyList_int32(entities)
+    ft = dmesh.meshtags_from_entities(msh, tdim - 1, adj, values.astype(np.int32))
+    ft.name = "boundaries"
+    return Domain(msh, ct, ft, regions, boundaries)
+
+
+def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
+                cell_data: str | None = None, facet_data: str | None = None) -> MeshData:
+    """A MeshData from any tetrahedral mesh meshio reads (VTU, Abaqus .inp, Medit .mesh, ...).
+
+    Cell tags come from the integer cell-data array ``cell_data`` of the tetrahedra
+    (default: the first integer array, e.g. gmsh:physical or medit:ref) mapped to
+    names by ``regions``; facet tags likewise from the triangles with ``facet_data``
+    and ``boundaries``. Named cell sets (Abaqus ELSET) become regions, named point
+    sets (NSET) become boundaries made of the boundary triangles whose vertices are
+    all in the set. Untagged tetrahedra form the region "all" only.
+    """
+    import meshio
+
+    m = meshio.read(path)
+    tet_blocks = [i for i, c in enumerate(m.cells) if c.type in ("tetra", "tetra10")]
+    if not tet_blocks:
+        raise ValueError(f"{path}: no tetrahedra in the mesh (found {', '.join(c.type for c in m.cells)})")
+    tri_blocks = [i for i, c in enumerate(m.cells) if c.type in ("triangle", "triangle6")]
+
+    def block_data(blocks: list[int], name: str | None, kind: str) -> np.ndarray | None:
+        candidates = [name] if name else [k for k, v in m.cell_data.items()
+                                          if all(np.issubdtype(np.asarray(v[b]).dtype, np.integer) for b in blocks)]
+        if name and name not in m.cell_data:
+            raise ValueError(f"{path}: no cell data named {name!r} for the {kind} "
+                             f"(found: {', '.join(m.cell_data) or 'none'})")
+        if not candidates or not blocks:
+            return None
+        return np.concatenate([np.asarray(m.cell_data[candidates[0]][b]).reshape(-1) for b in blocks])
+
+    cells = np.concatenate([m.cells[b].data[:, :4] for b in tet_blocks]).astype(np.int64)
+    ctags = block_data(tet_blocks, cell_data, "tetrahedra")
+    cell_tags = np.zeros(len(cells), dtype=np.int32) if ctags is None else ctags.astype(np.int32)
+    region_names = dict(regions)
+    extra_cells, extra_tags = [], []
+    block_offset = {b: sum(len(m.cells[bb].data) for bb in tet_blocks if bb < b) for b in tet_blocks}
+    next_tag = int(max([0, *np.unique(cell_tags).tolist(), *region_names.values()])) + 1
+    extra_cells, extra_tags = [], []
+    for set_name, per_block in getattr(m, "cell_sets", {}).items():
+        parts = [np.asarray(per_block[b], dtype=np.int64) + block_offset[b]
+                 for b in tet_blocks if b < len(per_block) and per_block[b] is not None]
+        members = np.concatenate(parts) if parts else np.empty(0, dtype=np.int64)
+        if members.size == 0 or set_name in region_names:
+            continue
+        extra_cells.append(cells[members])
+        extra_tags.append(np.full(len(members), next_tag, dtype=np.int32))
+        region_names[set_name] = next_tag
+        next_tag += 1
+    for tag_name, tag in regions.items():
+        if not np.any(cell_tags == tag):
+            raise ValueError(f"mesh.regions.{tag_name}: no tetrahedron has tag {tag}")
+    if tri_blocks:
+        facets = np.concatenate([m.cells[b].data[:, :3] for b in tri_blocks]).astype(np.int64)
+        ftags = block_data(tri_blocks, facet_data, "triangles")
+        facet_tags = np.zeros(len(facets), dtype=np.int32) if ftags is None else ftags.astype(np.int32)
+    else:
+        facets, facet_tags = np.empty((0, 3), dtype=np.int64), np.empty(0, dtype=np.int32)
+    for tag_name, tag in boundaries.items():
+        if not np.any(facet_tags == tag):
+            raise ValueError(f"mesh.boundaries.{tag_name}: no triangle has tag {tag}")
+    boundary_names = dict(boundaries)
+    point_sets = getattr(m, "point_sets", {})
+    if point_sets:
+        next_tag = int(max([0, *np.unique(facet_tags).tolist(), *boundary_names.values()])) + 1
+        exterior = exterior_triangles(cells)
+        nf, nt = [facets], [facet_tags]
+        for set_name, ids in point_sets.items():
+            if set_name in boundary_names:
+                continue
+            inside = np.zeros(len(m.points), dtype=bool)
+            inside[np.asarray(ids, dtype=np.int64)] = True
+            tris = exterior[inside[exterior].all(axis=1)]
+            if len(tris):
+                boundary_names[set_name] = next_tag
+                nf.append(tris)
+                nt.append(np.full(len(tris), next_tag, dtype=np.int32))
+                next_tag += 1
+        facets, facet_tags = np.concatenate(nf), np.concatenate(nt)
+    if extra_cells:
+        # cells in named sets are duplicated with the set's tag; _combine merges them into codes
+        cells = np.concatenate([cells, *extra_cells])
+        cell_tags = np.concatenate([cell_tags, *extra_tags])
+    return MeshData(points=np.asarray(m.points, dtype=np.float64)[:, :3] if m.points.shape[1] >= 3 else
+                    np.pad(m.points, ((0, 0), (0, 3 - m.points.shape[1]))),
+                    cells=cells, cell_tags=cell_tags, facets=facets, facet_tags=facet_tags,
+                    region_names=region_names, boundary_names=boundary_names)
+
+
+def exterior_triangles(cells: np.ndarray) -> np.ndarray:
+    """The triangles of a tetrahedral mesh that belong to exactly one tetrahedron."""
+    faces = np.concatenate([cells[:, [1, 2, 3]], cells[:, [0, 2, 3]], cells[:, [0, 1, 3]], cells[:, [0, 1, 2]]])
+    key = np.sort(faces, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return faces[counts[inverse.reshape(-1)] == 1]

@@ -1,0 +1,46 @@
+"""Scalar expressions of position x = (x[0], x[1], x[2]) written in config files, e.g. "0.1*x[0] + 0.05*x[1]".
+
+Only arithmetic, numbers, x[i] and the numpy functions in ALLOWED are accepted;
+anything else (attribute access, other names, calls of other functions) is rejected
+when the configuration is checked, before any solve.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Callable
+
+import numpy as np
+
+ALLOWED: dict[str, object] = {
+    name: getattr(np, name)
+    for name in ("sin", "cos", "tan", "exp", "log", "sqrt", "abs", "arctan2", "sinh", "cosh", "tanh", "pi")
+}
+_NODES = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Constant, ast.Name, ast.Load, ast.Subscript, ast.Call,
+          ast.operator, ast.unaryop)
+
+
+def compile_expression(text: str) -> Callable[[np.ndarray], np.ndarray]:
+    """A function f(x) -> values for x of shape (3, n), from the text; ValueError if not allowed."""
+    try:
+        tree = ast.parse(text, mode="eval")
+    except SyntaxError as err:
+        raise ValueError(f"invalid expression {text!r}: {err.msg}") from None
+    for node in ast.walk(tree):
+        if not isinstance(node, _NODES):
+            raise ValueError(f"invalid expression {text!r}: {type(node).__name__} is not allowed")
+        if isinstance(node, ast.Name) and node.id != "x" and node.id not in ALLOWED:
+            raise ValueError(f"invalid expression {text!r}: unknown name {node.id!r} (use x[0], x[1], x[2])")
+        if isinstance(node, ast.Call) and not (isinstance(node.func, ast.Name) and node.func.id in ALLOWED):
+            raise ValueError(f"invalid expression {text!r}: only {', '.join(sorted(ALLOWED))} may be called")
+    code = compile(tree, "<expression>", "eval")
+
+    def evaluate(x: np.ndarray) -> np.ndarray:
+        value = eval(code, {"__builtins__": {}}, {"x": x, **ALLOWED})  # noqa: S307 - checked AST above
+        return np.broadcast_to(np.asarray(value, dtype=np.float64), x.shape[1:]).copy()
+
+    try:
+        evaluate(np.zeros((3, 1)))
+    except Exception as err:  # noqa: BLE001 - any evaluation error is a config error
+        raise ValueError(f"invalid expression {text!r}: {err}") from None
+    return evaluate

@@ -1,0 +1,218 @@
+"""The nonlinear elasticity problem: function spaces, UFL forms, boundary data, load factor.
+
+Residual (pure displacement), with lambda the load factor:
+
+    R(u; v) = sum_r  P_r(F) : grad v  dx_r                 internal forces, P_r = dpsi_r/dF
+            - lambda sum_b  t_b . v  ds_b                  dead traction (per reference area)
+            + lambda sum_b  p_b J F^-T N . v  ds_b         follower pressure (acts along -n)
+            - lambda sum_r  b_r . v  dx_r                  body force (per reference volume)
+
+Mixed displacement-pressure (Taylor-Hood, P_k / P_(k-1)): with psi = W + (kappa/2) g^2
+(forms.law), the internal term uses P = dW/dF + p dg/dF and the pressure equation
+(g(F) - p / kappa) q dx is added. The Jacobian is always ufl.derivative of the residual.
+Dirichlet values are lambda times their reference value.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms import Law
+from forms.kinematics import cauchy_stress, deformation_gradient, von_mises
+from model.domain import Domain
+from model.polar_field import PolarField
+
+log = logging.getLogger(__name__)
+
+ValueSource = float | Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass
+class DirichletBoundary:
+    """Dirichlet data on one named boundary: per constrained component its dofs and values at lambda = 1."""
+
+    name: str
+    components: tuple[int, ...]
+    bcs: list[fem.DirichletBCMetaClass] = field(default_factory=list)
+    dofs: list[np.ndarray] = field(default_factory=list)  # local indices in the solution vector
+    values: list[fem.Function] = field(default_factory=list)
+    reference: list[np.ndarray] = field(default_factory=list)
+
+
+class ElasticityProblem:
+    """Forms and boundary data of one run; quantities that change (load factor, Dirichlet values) never recompile."""
+
+    def __init__(self, domain: Domain, materials: Sequence[tuple[str, Law]], degree: int = 1,
+                 quadrature_degree: int = 2, formulation: str = "displacement") -> None:
+        if formulation not in ("displacement", "mixed"):
+            raise ValueError(f"formulation must be 'displacement' or 'mixed', got {formulation!r}")
+        if formulation == "mixed" and degree < 2:
+            raise ValueError("the mixed (Taylor-Hood) formulation needs degree >= 2")
+        self.domain = domain
+        self.degree = degree
+        self.quadrature_degree = quadrature_degree
+        self.formulation = formulation
+        self.materials = list(materials)
+        msh = domain.mesh
+        cell = msh.ufl_cell()
+        displacement_element = ufl.VectorElement("Lagrange", cell, degree)
+        if formulation == "mixed":
+            element = ufl.MixedElement([displacement_element, ufl.FiniteElement("Lagrange", cell, degree - 1)])
+            self.space = fem.FunctionSpace(msh, element)
+            self.displacement_space = self.space.sub(0)
+        else:
+            self.space = fem.FunctionSpace(msh, displacement_element)
+            self.displacement_space = self.space
+        self.solution = fem.Function(self.space, name="solution")
+        if formulation == "mixed":
+            self.u, self.p = ufl.split(self.solution)
+            self.v, self.q = ufl.TestFunctions(self.space)
+        else:
+            self.u, self.p = self.solution, None
+            self.v, self.q = ufl.TestFunction(self.space), None
+        self.load_factor = fem.Constant(msh, PETSc.ScalarType(0.0))
+        metadata = {"quadrature_degree": quadrature_degree}
+        self.dx = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags, metadata=metadata)
+        self.ds = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags, metadata=metadata)
+        self.F = deformation_gradient(self.u)
+        self.polar_fields: list[PolarField] = []
+        self.internal = 0
+        self.external = 0
+        self.strain_energy = 0
+        self.stress_terms: list[tuple[ufl.core.expr.Expr, ufl.Measure]] = []
+        for region, law in self.materials:
+            self._add_material(region, law)
+        self.dirichlet: list[DirichletBoundary] = []
+        self._forms: tuple[fem.FormMetaClass, fem.FormMetaClass] | None = None
+
+    # --- set-up ---------------------------------------------------------------------------------
+
+    def region_measure(self, region: str) -> ufl.Measure:
+        """dx restricted to a named region ("all" is the whole mesh)."""
+        return self.dx if region == "all" else self.dx(self.domain.regions[region])
+
+    def boundary_measure(self, name: str) -> ufl.Measure:
+        """ds restricted to a named boundary."""
+        return self.ds(self.domain.boundaries[name])
+
+    def _add_material(self, region: str, law: Law) -> None:
+        dx = self.region_measure(region)
+        R = None
+        if law.needs_rotation:
+            polar = PolarField(self.domain.mesh, law.rotation_argument(self.F), self.quadrature_degree,
+                               self.domain.region_cells(region))
+            self.polar_fields.append(polar)
+            R = polar.rotation
+        P = law.stress(self.F, R, self.p)
+        self.internal += ufl.inner(P, ufl.grad(self.v)) * dx
+        if self.p is not None:
+            g = law.volume_constraint(self.F)
+            self.internal += (g - self.p / law.bulk_penalty) * self.q * dx
+        self.strain_energy += law.energy(self.F, R) * dx
+        self.stress_terms.append((P, dx))
+
+    def add_dirichlet(self, name: str, components: Sequence[int], values: Sequence[ValueSource]) -> None:
+        """u_i = lambda * value_i on boundary ``name`` for each listed component (constant or f(x))."""
+        facets = self.domain.boundary_facets(name)
+        fdim = self.domain.mesh.topology.dim - 1
+        entry = DirichletBoundary(name, tuple(components))
+        for comp, value in zip(components, values):
+            sub = self.displacement_space.sub(comp)
+            collapsed, _ = sub.collapse()
+            dofs = fem.locate_dofs_topological((sub, collapsed), fdim, facets)
+            g = fem.Function(collapsed)
+            if callable(value):
+                g.interpolate(lambda x, f=value: f(x))
+            else:
+                g.x.array[:] = float(value)
+            entry.reference.append(g.x.array.copy())
+            entry.values.append(g)
+            entry.dofs.append(dofs[0])
+            entry.bcs.append(fem.dirichletbc(g, dofs, sub))
+        self.dirichlet.append(entry)
+        self._forms = None
+
+    def add_traction(self, name: str, traction: Sequence[float] | ufl.core.expr.Expr) -> None:
+        """Dead traction t (per unit reference area) on boundary ``name``, scaled by lambda."""
+        t = ufl.as_vector(traction) if not isinstance(traction, ufl.core.expr.Expr) else traction
+        self.external += self.load_factor * ufl.inner(t, self.v) * self.boundary_measure(name)
+        self._forms = None
+
+    def add_pressure(self, name: str, pressure: float) -> None:
+        """Follower pressure p on boundary ``name`` (positive pushes inwards), scaled by lambda.
+
+        Reference-configuration traction t0 = -p J F^-T N (Nanson's formula).
+        """
+        N = ufl.FacetNormal(self.domain.mesh)
+        J = ufl.det(self.F)
+        t0 = -pressure * J * ufl.inv(self.F).T * N
+        self.external += self.load_factor * ufl.inner(t0, self.v) * self.boundary_measure(name)
+        self._forms = None
+
+    def add_body_force(self, region: str, force: Sequence[float] | ufl.core.expr.Expr) -> None:
+        """Body force b (per unit reference volume) on ``region``, scaled by lambda."""
+        b = ufl.as_vector(force) if not isinstance(force, ufl.core.expr.Expr) else force
+        self.external += self.load_factor * ufl.inner(b, self.v) * self.region_measure(region)
+        self._forms = None
+
+    # --- forms ----------------------------------------------------------------------------------
+
+    @property
+    def residual_form(self) -> ufl.Form:
+        return self.internal - self.external if self.external != 0 else self.internal
+
+    @property
+    def forms(self) -> tuple[fem.FormMetaClass, fem.FormMetaClass]:
+        """(residual, Jacobian) compiled; the Jacobian is the Gateaux derivative of the residual."""
+        if self._forms is None:
+            residual = self.residual_form
+            jacobian = ufl.derivative(residual, self.solution, ufl.TrialFunction(self.space))
+            self._forms = (fem.form(residual), fem.form(jacobian))
+        return self._forms
+
+    @property
+    def bcs(self) -> list[fem.DirichletBCMetaClass]:
+        return [bc for entry in self.dirichlet for bc in entry.bcs]
+
+    def set_load_factor(self, value: float) -> None:
+        """lambda <- value: scales loads and Dirichlet values (no recompilation)."""
+        self.load_factor.value = value
+        for entry in self.dirichlet:
+            for g, ref in zip(entry.values, entry.reference):
+                g.x.array[:] = value * ref
+
+    def update_state(self) -> None:
+        """Refresh state stored at quadrature points (polar rotations) from the current solution."""
+        for polar in self.polar_fields:
+            polar.update()
+
+    # --- derived quantities ---------------------------------------------------------------------
+
+    def total_energy(self) -> float:
+        """Total strain energy integral of psi over the body (all ranks)."""
+        if not hasattr(self, "_energy_form"):
+            self._energy_form = fem.form(self.strain_energy)
+        self.update_state()
+        comm = self.domain.mesh.comm
+        return comm.allreduce(fem.assemble_scalar(self._energy_form), op=MPI.SUM)
+
+    def cauchy_stress_terms(self) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
+        """(sigma = J^-1 P F^T, dx_r) per material region."""
+        return [(cauchy_stress(P, self.F), dx) for P, dx in self.stress_terms]
+
+    def von_mises_terms(self) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
+        return [(von_mises(sigma), dx) for sigma, dx in self.cauchy_stress_terms()]
+
+    def displacement(self) -> fem.Function:
+        """The displacement as a Function of its own (collapsed) space."""
+        if self.formulation == "mixed":
+            return self.solution.sub(0).collapse()
+        return self.solution

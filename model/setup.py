@@ -1,0 +1,125 @@
+"""From a checked RunConfig to a Domain, an ElasticityProblem and probes, checking every name first.
+
+Mesh sources: a built-in generator (meshes.GENERATORS), a gmsh .msh with named
+physical groups, or any tetrahedral mesh meshio reads. All name checks (regions,
+boundaries, probes inside the body, full and non-overlapping material coverage)
+raise ConfigError naming the key, before any solve starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+import meshes
+from model.config import ConfigError, MeshConfig, RunConfig
+from model.domain import Domain, build_domain, read_meshio
+from model.expressions import compile_expression
+from model.measurements import Probes
+from model.problem import ElasticityProblem
+
+
+def load_mesh_data(cfg: MeshConfig) -> meshes.MeshData:
+    """The MeshData of a mesh section (call on one rank); errors become ConfigError naming the key."""
+    if cfg.generator is not None:
+        try:
+            return meshes.generate(cfg.generator, **cfg.params)
+        except (TypeError, ValueError) as err:
+            raise ConfigError(f"mesh: {err}") from None
+    assert cfg.file is not None
+    try:
+        if cfg.file.suffix == ".msh":
+            data = meshes.read_msh(cfg.file)
+            for key, mapping in (("regions", cfg.regions), ("boundaries", cfg.boundaries)):
+                if mapping:
+                    raise ConfigError(f"mesh.{key}: a .msh file names its physical groups itself; remove this table")
+            return data
+        return read_meshio(cfg.file, cfg.regions, cfg.boundaries, cfg.cell_data, cfg.facet_data)
+    except ConfigError:
+        raise
+    except Exception as err:  # noqa: BLE001 - any reader failure is reported against mesh.file
+        message = str(err)
+        if message.startswith("mesh."):
+            raise ConfigError(message) from None
+        raise ConfigError(f"mesh.file: cannot read {cfg.file}: {message}") from None
+
+
+def make_domain(cfg: MeshConfig, comm: MPI.Comm) -> Domain:
+    """Build the mesh on rank 0 and distribute it; a failure on rank 0 is raised on every rank."""
+    data, error = None, None
+    if comm.rank == 0:
+        try:
+            data = load_mesh_data(cfg)
+        except ConfigError as err:
+            error = str(err)
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise ConfigError(error)
+    return build_domain(comm, data)
+
+
+@dataclass
+class Setup:
+    domain: Domain
+    problem: ElasticityProblem
+    probes: Probes
+
+
+def _check_names(config: RunConfig, domain: Domain) -> None:
+    regions = sorted(domain.regions)
+    boundaries = sorted(domain.boundaries)
+    for i, m in enumerate(config.materials):
+        if m.region != "all" and m.region not in domain.regions:
+            raise ConfigError(f"material[{i}].region: no region named {m.region!r} in the mesh "
+                              f"(regions: {', '.join(['all', *regions])})")
+    for i, b in enumerate(config.boundaries):
+        if b.on not in domain.boundaries:
+            raise ConfigError(f"boundary[{i}].on: no boundary named {b.on!r} in the mesh "
+                              f"(boundaries: {', '.join(boundaries) or 'none'})")
+    for i, f in enumerate(config.body_forces):
+        if f.region != "all" and f.region not in domain.regions:
+            raise ConfigError(f"body_force[{i}].region: no region named {f.region!r} in the mesh "
+                              f"(regions: {', '.join(['all', *regions])})")
+    comm = domain.mesh.comm
+    tdim = domain.mesh.topology.dim
+    num_owned = domain.mesh.topology.index_map(tdim).size_local
+    count = np.zeros(num_owned, dtype=np.int32)
+    owner = np.full(num_owned, -1)
+    for i, m in enumerate(config.materials):
+        cells = domain.region_cells(m.region)
+        cells = cells[cells < num_owned]
+        clash = comm.allreduce(int(np.max(owner[cells], initial=-1)), op=MPI.MAX)
+        if clash >= 0:
+            raise ConfigError(f"material[{i}].region: {m.region!r} overlaps the region of material[{clash}]")
+        owner[cells] = i
+        count[cells] += 1
+    uncovered = comm.allreduce(int(np.sum(count == 0)), op=MPI.SUM)
+    if uncovered:
+        raise ConfigError(f"material: {uncovered} cells are in no material's region (use region = \"all\" "
+                          f"or cover regions {', '.join(regions)})")
+
+
+def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
+    """Domain, problem with all loads and boundary conditions, and probes of a configuration."""
+    domain = make_domain(config.mesh, comm)
+    _check_names(config, domain)
+    disc = config.discretization
+    problem = ElasticityProblem(domain, [(m.region, m.law) for m in config.materials], disc.degree,
+                                disc.quadrature_degree, disc.formulation)
+    for b in config.boundaries:
+        if b.type == "displacement":
+            values = b.value if b.value else tuple(compile_expression(e) for e in b.expression)
+            problem.add_dirichlet(b.on, b.components, values)
+        elif b.type == "traction":
+            problem.add_traction(b.on, b.value)
+        else:
+            problem.add_pressure(b.on, b.value[0])
+    for f in config.body_forces:
+        problem.add_body_force(f.region, f.value)
+    probes = Probes(domain.mesh, {p.name: p.point for p in config.probes})
+    if probes.missing:
+        i = [p.name for p in config.probes].index(probes.missing[0])
+        raise ConfigError(f"probe[{i}].point: {list(config.probes[i].point)} is outside the mesh")
+    return Setup(domain, problem, probes)

@@ -1,0 +1,371 @@
+"""Tests of the meshes package: generators, gmsh extraction, .msh round trips, parameter errors.
+
+The tests are rank-independent (every MPI rank runs them on its own), so they
+also pass under ``mpirun -n 2 python -m pytest``.  Run them from the project root
+(``python -m pytest`` puts the current directory on ``sys.path``).
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import gmsh
+import numpy as np
+import pytest
+
+from meshes import (
+    GENERATORS,
+    MeshData,
+    ParameterError,
+    box,
+    cook,
+    cylinder,
+    from_gmsh_model,
+    fusiform,
+    generate,
+    read_msh,
+    write_msh,
+)
+from meshes._gmsh import gmsh_is_initialized, gmsh_session
+from meshes.cook import COOK_AREA
+from meshes.cylinder import build_cylinder_model, cylinder_options
+from meshes.topology import boundary_facets, facet_keys, signed_volumes, tet_faces
+
+# Small instances of every generator, used by the generic checks.
+SMALL = {
+    "box": {"size": (2.0, 1.0, 0.5), "cells": (3, 2, 2)},
+    "cylinder": {"radius": 0.5, "length": 1.0, "size": 0.3},
+    "cook": {"cells": 4, "layers": 2, "thickness": 2.0},
+    "fusiform": {"size": 0.008},
+}
+
+
+# --- helpers ------------------------------------------------------------------------------------
+
+
+def key_set(triangles: np.ndarray) -> set[tuple[int, ...]]:
+    """Orientation-independent set of triangles."""
+    return {tuple(row) for row in facet_keys(triangles).tolist()}
+
+
+def face_multiplicity(mesh: MeshData) -> np.ndarray:
+    """Count the tetrahedra sharing each distinct face of the mesh."""
+    _, counts = np.unique(facet_keys(tet_faces(mesh.cells)), axis=0, return_counts=True)
+    return counts
+
+
+def assert_conforming(mesh: MeshData) -> None:
+    """Every face is shared by 1 (boundary) or 2 (interior) tets; named faces cover the boundary exactly."""
+    counts = face_multiplicity(mesh)
+    assert set(np.unique(counts).tolist()) <= {1, 2}
+    boundary = key_set(boundary_facets(mesh.cells))
+    named = facet_keys(mesh.facets)
+    assert len(np.unique(named, axis=0)) == len(named), "a boundary triangle is named twice"
+    assert key_set(mesh.facets) == boundary
+
+
+def assert_valid(mesh: MeshData) -> None:
+    """Dtypes, shapes, non-degenerate tets and non-empty named groups."""
+    assert mesh.points.dtype == np.float64 and mesh.points.shape[1] == 3
+    assert mesh.cells.dtype == np.int64 and mesh.cells.shape[1] == 4
+    assert mesh.cell_tags.dtype == np.int32 and mesh.cell_tags.shape == (mesh.num_cells,)
+    assert mesh.facets.dtype == np.int64 and mesh.facets.shape[1] == 3
+    assert mesh.facet_tags.dtype == np.int32 and mesh.facet_tags.shape == (len(mesh.facets),)
+    volumes = np.abs(signed_volumes(mesh.points, mesh.cells))
+    assert volumes.min() > 1e-6 * volumes.mean()
+    assert np.array_equal(np.unique(mesh.cells), np.arange(mesh.num_points)), "unused or missing points"
+    for name in mesh.region_names:
+        assert len(mesh.region_cells(name)) > 0, name
+    for name in mesh.boundary_names:
+        assert len(mesh.boundary_facets(name)) > 0, name
+
+
+def face_points(mesh: MeshData, name: str) -> np.ndarray:
+    """Coordinates of the vertices of the named boundary."""
+    return mesh.points[np.unique(mesh.boundary_facets(name))]
+
+
+def canonical_cells(mesh: MeshData) -> np.ndarray:
+    """Cells as sorted rows with their tag, sorted lexicographically (order-independent comparison)."""
+    rows = np.column_stack([np.sort(mesh.cells, axis=1), mesh.cell_tags])
+    return rows[np.lexsort(rows.T[::-1])]
+
+
+@pytest.fixture
+def workdir() -> Iterator[Path]:
+    """Yield a private temporary directory (safe when several MPI ranks run the tests at once)."""
+    with tempfile.TemporaryDirectory(prefix="test_meshes_") as name:
+        yield Path(name)
+
+
+@pytest.fixture(scope="module")
+def muscle() -> MeshData:
+    """Build the fusiform muscle at its default size (once per module)."""
+    return fusiform()
+
+
+# --- generic checks -----------------------------------------------------------------------------
+
+
+def test_registry_names() -> None:
+    assert set(GENERATORS) == {"box", "cylinder", "cook", "fusiform"}
+
+
+@pytest.mark.parametrize("name", sorted(SMALL))
+def test_generators_valid_and_conforming(name: str) -> None:
+    mesh = generate(name, **SMALL[name])
+    assert_valid(mesh)
+    assert_conforming(mesh)
+
+
+@pytest.mark.parametrize("name", ["box", "cook", "cylinder"])
+def test_deterministic(name: str) -> None:
+    first, second = generate(name, **SMALL[name]), generate(name, **SMALL[name])
+    for field in ("points", "cells", "cell_tags", "facets", "facet_tags"):
+        assert np.array_equal(getattr(first, field), getattr(second, field)), field
+
+
+# --- box ----------------------------------------------------------------------------------------
+
+
+def test_box_default() -> None:
+    mesh = box()
+    assert mesh.num_cells == 384
+    assert mesh.num_points == 125
+    assert mesh.region_names == {"body": 1}
+    assert set(mesh.boundary_names) == {"xmin", "xmax", "ymin", "ymax", "zmin", "zmax"}
+    assert mesh.volume() == pytest.approx(1.0, rel=1e-12)
+    assert np.all(signed_volumes(mesh.points, mesh.cells) > 0)
+    for name in mesh.boundary_names:
+        assert len(mesh.boundary_facets(name)) == 2 * 4 * 4
+
+
+def test_box_faces_lie_on_planes() -> None:
+    size = (2.0, 1.0, 0.5)
+    mesh = box(size=size, cells=(3, 2, 2))
+    assert mesh.num_cells == 6 * 3 * 2 * 2
+    assert mesh.num_points == 4 * 3 * 3
+    assert mesh.volume() == pytest.approx(1.0, rel=1e-12)
+    for axis, letter in enumerate("xyz"):
+        assert np.all(face_points(mesh, f"{letter}min")[:, axis] == 0.0)
+        assert np.all(face_points(mesh, f"{letter}max")[:, axis] == size[axis])
+
+
+# --- cook ---------------------------------------------------------------------------------------
+
+
+def test_cook_default() -> None:
+    mesh = cook()
+    assert mesh.num_cells == 6 * 8 * 8
+    assert mesh.num_points == 9 * 9 * 2
+    assert mesh.volume() == pytest.approx(COOK_AREA * 1.0, rel=1e-12)
+    assert COOK_AREA == 1440.0
+    assert np.all(signed_volumes(mesh.points, mesh.cells) > 0)
+    assert set(mesh.boundary_names) == {"left", "right", "bottom", "top", "front", "back"}
+
+
+def test_cook_faces() -> None:
+    mesh = cook(cells=4, layers=2, thickness=2.0)
+    assert mesh.volume() == pytest.approx(COOK_AREA * 2.0, rel=1e-12)
+    assert np.all(face_points(mesh, "left")[:, 0] == 0.0)
+    assert np.all(face_points(mesh, "right")[:, 0] == 48.0)
+    assert np.all(face_points(mesh, "front")[:, 2] == 0.0)
+    assert np.all(face_points(mesh, "back")[:, 2] == 2.0)
+    bottom, top = face_points(mesh, "bottom"), face_points(mesh, "top")
+    assert np.allclose(bottom[:, 1], 44.0 / 48.0 * bottom[:, 0])
+    assert np.allclose(top[:, 1], 44.0 + 16.0 / 48.0 * top[:, 0])
+    right = face_points(mesh, "right")
+    assert right[:, 1].min() == 44.0 and right[:, 1].max() == 60.0
+
+
+# --- cylinder -----------------------------------------------------------------------------------
+
+
+def test_cylinder_default() -> None:
+    radius, length = 0.5, 2.0
+    mesh = cylinder()
+    assert_valid(mesh)
+    assert_conforming(mesh)
+    assert mesh.region_names == {"body": 1}
+    assert set(mesh.boundary_names) == {"bottom", "top", "lateral"}
+    assert mesh.volume() == pytest.approx(math.pi * radius**2 * length, rel=0.03)
+    assert np.allclose(face_points(mesh, "bottom")[:, 2], 0.0, atol=1e-9)
+    assert np.allclose(face_points(mesh, "top")[:, 2], length, atol=1e-9)
+    lateral = face_points(mesh, "lateral")
+    assert np.allclose(np.hypot(lateral[:, 0], lateral[:, 1]), radius, atol=1e-6)
+
+
+# --- fusiform -----------------------------------------------------------------------------------
+
+
+def test_fusiform_groups_and_volumes(muscle: MeshData) -> None:
+    length, rb, rt, lt = 0.1, 0.015, 0.004, 0.02
+    assert_valid(muscle)
+    assert set(muscle.region_names) == {"belly", "tendon_origin", "tendon_insertion"}
+    assert set(muscle.boundary_names) == {"origin", "insertion", "surface"}
+    assert np.all(muscle.cell_tags > 0)
+    tendon = math.pi * rt**2 * lt
+    assert muscle.volume("tendon_origin") == pytest.approx(tendon, rel=0.05)
+    assert muscle.volume("tendon_insertion") == pytest.approx(tendon, rel=0.05)
+    # mean of r(s)^2 for r = rt + (rb - rt) sin(pi s)^2
+    d = rb - rt
+    belly = math.pi * length * (rt**2 + rt * d + 3.0 / 8.0 * d**2)
+    assert muscle.volume("belly") == pytest.approx(belly, rel=0.05)
+    assert muscle.volume() == pytest.approx(sum(muscle.volume(r) for r in muscle.region_names), rel=1e-12)
+
+
+def test_fusiform_layout(muscle: MeshData) -> None:
+    length, lt = 0.1, 0.02
+    total = length + 2 * lt
+    z = muscle.points[:, 2]
+    tol = 1e-9
+    assert np.allclose(face_points(muscle, "origin")[:, 2], 0.0, atol=tol)
+    assert np.allclose(face_points(muscle, "insertion")[:, 2], total, atol=tol)
+    origin_z = z[muscle.region_cells("tendon_origin")]
+    insertion_z = z[muscle.region_cells("tendon_insertion")]
+    belly_z = z[muscle.region_cells("belly")]
+    assert origin_z.min() > -tol and origin_z.max() < lt + tol
+    assert insertion_z.min() > lt + length - tol and insertion_z.max() < total + tol
+    assert belly_z.min() > lt - tol and belly_z.max() < lt + length + tol
+
+
+def test_fusiform_conforming(muscle: MeshData) -> None:
+    # every interior triangle is shared by exactly 2 tets, the outer boundary is exactly
+    # origin + insertion + surface, and the tendon/belly interfaces share their triangles
+    assert_conforming(muscle)
+    belly = key_set(tet_faces(muscle.region_cells("belly")))
+    for tendon in ("tendon_origin", "tendon_insertion"):
+        shared = belly & key_set(tet_faces(muscle.region_cells(tendon)))
+        assert len(shared) > 0, tendon
+
+
+# --- gmsh extraction and .msh files -------------------------------------------------------------
+
+
+def test_msh_round_trip_from_gmsh(workdir: Path) -> None:
+    path = workdir / "cylinder.msh"
+    with gmsh_session(cylinder_options(0.3)):
+        build_cylinder_model(0.5, 1.0)
+        gmsh.model.mesh.generate(3)
+        direct = from_gmsh_model(gmsh.model)
+        gmsh.write(str(path))
+    loaded = read_msh(path)
+    assert loaded.region_names == {"body": 1}
+    assert loaded.boundary_names == {"bottom": 1, "top": 2, "lateral": 3}
+    assert np.allclose(loaded.points, direct.points, rtol=1e-14, atol=1e-15)  # text .msh: 16 digits
+    for field in ("cells", "cell_tags", "facets", "facet_tags"):
+        assert np.array_equal(getattr(loaded, field), getattr(direct, field)), field
+    assert_conforming(loaded)
+
+
+@pytest.mark.parametrize("name", ["box", "fusiform"])
+def test_write_msh_round_trip(name: str, workdir: Path) -> None:
+    mesh = generate(name, **SMALL[name])
+    path = workdir / f"{name}.msh"
+    write_msh(mesh, path)  # binary: bit-exact coordinates
+    loaded = read_msh(path)
+    assert loaded.region_names == mesh.region_names
+    assert loaded.boundary_names == mesh.boundary_names
+    assert np.array_equal(loaded.points, mesh.points)
+    assert np.array_equal(canonical_cells(loaded), canonical_cells(mesh))
+    for tag in mesh.boundary_names.values():
+        assert key_set(loaded.facets[loaded.facet_tags == tag]) == key_set(
+            mesh.facets[mesh.facet_tags == tag]
+        )
+
+
+def test_second_order_reduced_to_vertices() -> None:
+    meshes = []
+    for order in (1, 2):
+        with gmsh_session({**cylinder_options(0.3), "Mesh.ElementOrder": order}):
+            build_cylinder_model(0.5, 1.0)
+            gmsh.model.mesh.generate(3)
+            meshes.append(from_gmsh_model(gmsh.model))
+    linear, quadratic = meshes
+    for field in ("points", "cells", "cell_tags", "facets", "facet_tags"):
+        assert np.array_equal(getattr(linear, field), getattr(quadratic, field)), field
+
+
+def test_unnamed_groups_and_no_tets() -> None:
+    with gmsh_session():
+        gmsh.model.occ.addBox(0, 0, 0, 1, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.model.mesh.generate(2)
+        with pytest.raises(ValueError, match="no tetrahedra"):
+            from_gmsh_model(gmsh.model)
+        gmsh.model.addPhysicalGroup(3, [1], 7)
+        gmsh.model.addPhysicalGroup(2, [1, 2], 5)
+        gmsh.model.mesh.generate(3)
+        mesh = from_gmsh_model(gmsh.model)
+    assert mesh.region_names == {"7": 7}
+    assert mesh.boundary_names == {"5": 5}
+    assert np.all(mesh.cell_tags == 7)
+    assert mesh.volume() == pytest.approx(1.0)
+
+
+def test_read_msh_missing_file(workdir: Path) -> None:
+    with pytest.raises(FileNotFoundError):
+        read_msh(workdir / "missing.msh")
+
+
+def test_existing_gmsh_session_is_preserved() -> None:
+    assert not gmsh_is_initialized()
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("user")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 123.0)
+        mesh = cylinder(size=0.5)
+        assert mesh.num_cells > 0
+        assert gmsh_is_initialized()
+        assert gmsh.model.getCurrent() == "user"
+        assert gmsh.option.getNumber("Mesh.MeshSizeMax") == 123.0
+    finally:
+        gmsh.finalize()
+    assert not gmsh_is_initialized()
+
+
+def test_meshdata_validation() -> None:
+    with pytest.raises(ValueError, match="cells"):
+        MeshData(np.zeros((4, 3)), np.zeros((1, 3)), np.zeros(1), np.zeros((0, 3)), np.zeros(0))
+    with pytest.raises(ValueError, match="outside"):
+        MeshData(np.zeros((4, 3)), [[0, 1, 2, 4]], [1], np.zeros((0, 3)), np.zeros(0))
+
+
+# --- parameter errors ---------------------------------------------------------------------------
+
+
+def test_generate_passes_parameters() -> None:
+    mesh = generate("box", cells=[1, 1, 1], size=[1, 2, 3])
+    assert mesh.num_cells == 6
+    assert mesh.volume() == pytest.approx(6.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "params", "message"),
+    [
+        ("sphere", {}, "unknown mesh generator 'sphere'; available: box, cook, cylinder, fusiform"),
+        ("cylinder", {"radiu": 1.0}, "cylinder: unknown parameter 'radiu'"),
+        ("cylinder", {"radius": -1.0}, "cylinder: radius must be > 0, got -1.0"),
+        ("cylinder", {"size": 0}, "cylinder: size must be > 0, got 0.0"),
+        ("cylinder", {"length": float("nan")}, "cylinder: length must be > 0"),
+        ("box", {"cells": (4, 4)}, "box: cells must have 3 entries, got 2"),
+        ("box", {"size": (1.0, -2.0, 1.0)}, "box: size[1] must be > 0, got -2.0"),
+        ("box", {"cells": (4, 0, 4)}, "box: cells[1] must be >= 1, got 0"),
+        ("box", {"cells": 4}, "box: cells must be a sequence of 3 numbers"),
+        ("cook", {"cells": 0}, "cook: cells must be >= 1, got 0"),
+        ("cook", {"layers": 1.5}, "cook: layers must be an integer >= 1, got 1.5"),
+        ("cook", {"layers": True}, "cook: layers must be an integer >= 1, got True"),
+        ("cook", {"thickness": -1}, "cook: thickness must be > 0, got -1.0"),
+        ("fusiform", {"size": -0.1}, "fusiform: size must be > 0, got -0.1"),
+        ("fusiform", {"tendon_radius": 0.02}, "fusiform: tendon_radius must be < belly_radius"),
+    ],
+)
+def test_generate_errors(name: str, params: dict[str, object], message: str) -> None:
+    with pytest.raises(ValueError, match=None) as info:
+        generate(name, **params)
+    assert message in str(info.value)
+    assert isinstance(info.value, ParameterError)
