@@ -7,10 +7,11 @@ Geometry (SI units, axis along z)::
     z = Lt + L .. L + 2 Lt   tendon_insertion  cylinder of radius rt
 
 with ``L = length``, ``Lt = tendon_length``, ``rb = belly_radius`` and
-``rt = tendon_radius``.  The belly is a smooth B-spline loft through circular
-sections of the profile (tangent to the tendons at both ends since
-``r'(0) = r'(L) = 0``).  The three solids are fragmented together so that the
-interface disks are shared and the mesh is conforming across them.
+``rt = tendon_radius``.  The belly is a smooth B-spline loft through
+:data:`SECTIONS` circular sections of the profile, so it joins the tendons
+almost tangentially (``r'(0) = r'(L) = 0``).  The three solids are fragmented
+together so that the interface disks are shared and the mesh is conforming
+across them.
 """
 
 from __future__ import annotations

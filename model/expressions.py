@@ -1,4 +1,8 @@
-"""Scalar expressions of position x = (x[0], x[1], x[2]) written in config files, e.g. "0.1*x[0] + 0.05*x[1]".
+"""Scalar expressions of position x = (x[0], x[1], x[2]) and load factor t written in config files.
+
+Example: "0.1*x[0] + 0.05*x[1]", or a twist "x[1]*cos(t*pi/2) - x[2]*sin(t*pi/2) - x[1]".
+An expression that does not mention t is scaled by the load factor like a constant
+value; one that mentions t is evaluated at t = load factor and not scaled.
 
 Only arithmetic, numbers, x[i] and the numpy functions in ALLOWED are accepted;
 anything else (attribute access, other names, calls of other functions) is rejected
@@ -20,8 +24,13 @@ _NODES = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Constant, ast.Name, ast.Lo
           ast.operator, ast.unaryop)
 
 
-def compile_expression(text: str) -> Callable[[np.ndarray], np.ndarray]:
-    """A function f(x) -> values for x of shape (3, n), from the text; ValueError if not allowed."""
+def uses_load_factor(text: str) -> bool:
+    """True when the expression mentions the load factor t."""
+    return any(isinstance(n, ast.Name) and n.id == "t" for n in ast.walk(ast.parse(text, mode="eval")))
+
+
+def compile_expression(text: str) -> Callable[..., np.ndarray]:
+    """A function f(x, t=1.0) -> values for x of shape (3, n), from the text; ValueError if not allowed."""
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as err:
@@ -29,14 +38,14 @@ def compile_expression(text: str) -> Callable[[np.ndarray], np.ndarray]:
     for node in ast.walk(tree):
         if not isinstance(node, _NODES):
             raise ValueError(f"invalid expression {text!r}: {type(node).__name__} is not allowed")
-        if isinstance(node, ast.Name) and node.id != "x" and node.id not in ALLOWED:
-            raise ValueError(f"invalid expression {text!r}: unknown name {node.id!r} (use x[0], x[1], x[2])")
+        if isinstance(node, ast.Name) and node.id not in ("x", "t") and node.id not in ALLOWED:
+            raise ValueError(f"invalid expression {text!r}: unknown name {node.id!r} (use x[0], x[1], x[2], t)")
         if isinstance(node, ast.Call) and not (isinstance(node.func, ast.Name) and node.func.id in ALLOWED):
             raise ValueError(f"invalid expression {text!r}: only {', '.join(sorted(ALLOWED))} may be called")
     code = compile(tree, "<expression>", "eval")
 
-    def evaluate(x: np.ndarray) -> np.ndarray:
-        value = eval(code, {"__builtins__": {}}, {"x": x, **ALLOWED})  # noqa: S307 - checked AST above
+    def evaluate(x: np.ndarray, t: float = 1.0) -> np.ndarray:
+        value = eval(code, {"__builtins__": {}}, {"x": x, "t": t, **ALLOWED})  # noqa: S307 - checked AST above
         return np.broadcast_to(np.asarray(value, dtype=np.float64), x.shape[1:]).copy()
 
     try:

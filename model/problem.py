@@ -45,6 +45,8 @@ class DirichletBoundary:
     dofs: list[np.ndarray] = field(default_factory=list)  # local indices in the solution vector
     values: list[fem.Function] = field(default_factory=list)
     reference: list[np.ndarray] = field(default_factory=list)
+    #: per component: f(x, t) evaluated at t = load factor (not scaled), or None (value scaled by t)
+    of_load_factor: list[Callable[..., np.ndarray] | None] = field(default_factory=list)
 
 
 class ElasticityProblem:
@@ -119,17 +121,25 @@ class ElasticityProblem:
         self.strain_energy += law.energy(self.F, R) * dx
         self.stress_terms.append((P, dx))
 
-    def add_dirichlet(self, name: str, components: Sequence[int], values: Sequence[ValueSource]) -> None:
-        """u_i = lambda * value_i on boundary ``name`` for each listed component (constant or f(x))."""
+    def add_dirichlet(self, name: str, components: Sequence[int], values: Sequence[ValueSource],
+                      load_dependent: Sequence[bool] | None = None) -> None:
+        """u_i = lambda * value_i on boundary ``name`` for each listed component (constant or f(x)).
+
+        A component marked load-dependent has u_i = f(x, lambda) instead (not scaled).
+        """
+        load_dependent = load_dependent or [False] * len(components)
         facets = self.domain.boundary_facets(name)
         fdim = self.domain.mesh.topology.dim - 1
         entry = DirichletBoundary(name, tuple(components))
-        for comp, value in zip(components, values):
+        for comp, value, dependent in zip(components, values, load_dependent):
             sub = self.displacement_space.sub(comp)
             collapsed, _ = sub.collapse()
             dofs = fem.locate_dofs_topological((sub, collapsed), fdim, facets)
             g = fem.Function(collapsed)
-            if callable(value):
+            entry.of_load_factor.append(value if dependent else None)
+            if dependent:
+                g.interpolate(lambda x, f=value: f(x, float(self.load_factor.value)))
+            elif callable(value):
                 g.interpolate(lambda x, f=value: f(x))
             else:
                 g.x.array[:] = float(value)
@@ -186,8 +196,11 @@ class ElasticityProblem:
         """lambda <- value: scales loads and Dirichlet values (no recompilation)."""
         self.load_factor.value = value
         for entry in self.dirichlet:
-            for g, ref in zip(entry.values, entry.reference):
-                g.x.array[:] = value * ref
+            for g, ref, f in zip(entry.values, entry.reference, entry.of_load_factor):
+                if f is None:
+                    g.x.array[:] = value * ref
+                else:
+                    g.interpolate(lambda x, f=f: f(x, value))
 
     def update_state(self) -> None:
         """Refresh state stored at quadrature points (polar rotations) from the current solution."""

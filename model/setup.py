@@ -16,7 +16,7 @@ from mpi4py import MPI
 import meshes
 from model.config import ConfigError, MeshConfig, RunConfig
 from model.domain import Domain, build_domain, read_meshio
-from model.expressions import compile_expression
+from model.expressions import compile_expression, uses_load_factor
 from model.measurements import Probes
 from model.problem import ElasticityProblem
 
@@ -110,8 +110,11 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
                                 disc.quadrature_degree, disc.formulation)
     for b in config.boundaries:
         if b.type == "displacement":
-            values = b.value if b.value else tuple(compile_expression(e) for e in b.expression)
-            problem.add_dirichlet(b.on, b.components, values)
+            if b.value:
+                problem.add_dirichlet(b.on, b.components, b.value)
+            else:
+                problem.add_dirichlet(b.on, b.components, [compile_expression(e) for e in b.expression],
+                                      [uses_load_factor(e) for e in b.expression])
         elif b.type == "traction":
             problem.add_traction(b.on, b.value)
         else:

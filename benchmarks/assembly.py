@@ -1,0 +1,269 @@
+"""Assembly rates and Newton iterations of the four laws (figures only, no assertions).
+
+(a) Residual and Jacobian assembly rate, in cells per second, of every law at
+    displacement degree 1 (quadrature degree 2) and 2 (quadrature degree 4) on a
+    structured box at a smooth deformed state (a twist about the box's axis plus a
+    stretch). Each timing includes what the SNES callbacks do before assembling:
+    problem.update_state() (the polar rotations of corotated; nothing for the
+    others), zeroing, assembly into a pre-created vector/matrix and the ghost
+    exchange / final matrix assembly. Best of --repeats; in parallel each
+    repetition counts with the slowest rank, and the rate uses the global number
+    of cells. Form compilation (fem.form of residual and Jacobian, FFCx + C compiler)
+    is timed separately, in a fresh JIT cache so it is a real compilation.
+(b) Newton iterations per load step of examples/twisting_bar.toml with its material
+    swapped for each law (equivalent small-strain moduli), output files disabled.
+    The wall time includes set-up and JIT compilation (dolfinx's usual cache).
+
+    python benchmarks/assembly.py [--quick] [--laws stvk corotated] [--json out.json]
+    mpirun -n 2 python benchmarks/assembly.py --quick
+
+Both parts print a Markdown table (rank 0 only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import logging
+import shutil
+import sys
+import tempfile
+import time
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import ufl  # noqa: E402
+from dolfinx import fem  # noqa: E402
+from dolfinx.fem import petsc as fem_petsc  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+import forms  # noqa: E402
+import meshes  # noqa: E402
+from model.config import parse  # noqa: E402
+from model.domain import build_domain  # noqa: E402
+from model.problem import ElasticityProblem  # noqa: E402
+from model.run import SolveFailed, run  # noqa: E402
+
+TWISTING_BAR = ROOT / "examples" / "twisting_bar.toml"
+E, NU = 1.0e6, 0.3
+#: (degree, quadrature degree, box cells per side [full, quick])
+DISCRETIZATIONS = ((1, 2, (20, 6)), (2, 4, (12, 4)))
+
+
+def law_parameters(name: str, E: float = E, nu: float = NU) -> dict[str, float]:
+    """Parameters of law ``name`` with the small-strain moduli of (E, nu).
+
+    mooney_rivlin: shear modulus 2 (c1 + c2) = mu with c1 = c2, bulk modulus 2 K = lmbda + 2 mu / 3.
+    """
+    if name != "mooney_rivlin":
+        return {"E": E, "nu": nu}
+    mu = E / (2.0 * (1.0 + nu))
+    bulk = E / (3.0 * (1.0 - 2.0 * nu))
+    return {"c1": mu / 4.0, "c2": mu / 4.0, "K": bulk / 2.0}
+
+
+def slowest(comm: MPI.Comm, action: Callable[[], Any]) -> float:
+    """Wall time of a collective action on the slowest rank."""
+    comm.Barrier()
+    start = time.perf_counter()
+    action()
+    return comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+
+
+def best_of(comm: MPI.Comm, action: Callable[[], Any], repeats: int) -> float:
+    return min(slowest(comm, action) for _ in range(repeats))
+
+
+def deformed_state(x: np.ndarray) -> np.ndarray:
+    """A smooth displacement of the unit cube: twist of 0.6 rad per unit length about the
+    axis y = z = 0.5, a 10 % stretch along x and a bending term; J stays near 1."""
+    angle = 0.6 * x[0]
+    y, z = x[1] - 0.5, x[2] - 0.5
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([0.1 * x[0] + 0.05 * np.sin(np.pi * x[1]) * x[2],
+                     c * y - s * z - y + 0.05 * x[0] ** 2,
+                     s * y + c * z - z])
+
+
+def assembly_case(comm: MPI.Comm, law_name: str, degree: int, quadrature_degree: int, n: int,
+                  repeats: int, cache_dir: str) -> dict[str, Any]:
+    data = meshes.box((1.0, 1.0, 1.0), (n, n, n)) if comm.rank == 0 else None
+    domain = build_domain(comm, data)
+    msh = domain.mesh
+    cells = msh.topology.index_map(msh.topology.dim).size_global
+    law = forms.make_law(law_name, **law_parameters(law_name))
+    problem: ElasticityProblem | None = None
+
+    def make_problem() -> None:
+        nonlocal problem
+        problem = ElasticityProblem(domain, [("all", law)], degree, quadrature_degree)
+
+    setup_time = slowest(comm, make_problem)  # includes the polar Expression's JIT for corotated
+    assert problem is not None
+    problem.solution.interpolate(deformed_state)
+    problem.solution.x.scatter_forward()
+    residual_ufl = problem.residual_form
+    jacobian_ufl = ufl.derivative(residual_ufl, problem.solution, ufl.TrialFunction(problem.space))
+    jit = {"cache_dir": cache_dir}
+    compiled: dict[str, fem.FormMetaClass] = {}
+    compile_residual = slowest(comm, lambda: compiled.update(r=fem.form(residual_ufl, jit_params=jit)))
+    compile_jacobian = slowest(comm, lambda: compiled.update(j=fem.form(jacobian_ufl, jit_params=jit)))
+    residual, jacobian = compiled["r"], compiled["j"]
+    b = fem_petsc.create_vector(residual)
+    A = fem_petsc.create_matrix(jacobian)
+
+    def assemble_residual() -> None:
+        problem.update_state()
+        with b.localForm() as b_local:
+            b_local.set(0.0)
+        fem_petsc.assemble_vector(b, residual)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+
+    def assemble_jacobian() -> None:
+        problem.update_state()
+        A.zeroEntries()
+        fem_petsc.assemble_matrix(A, jacobian)
+        A.assemble()
+
+    t_update = best_of(comm, problem.update_state, repeats)
+    t_residual = best_of(comm, assemble_residual, repeats)
+    t_jacobian = best_of(comm, assemble_jacobian, repeats)
+    result = {
+        "law": law_name, "degree": degree, "quadrature_degree": quadrature_degree, "box": n, "cells": cells,
+        "dofs": problem.space.dofmap.index_map.size_global * problem.space.dofmap.index_map_bs,
+        "ranks": comm.size, "setup_s": setup_time, "compile_residual_s": compile_residual,
+        "compile_jacobian_s": compile_jacobian, "polar_update_s": t_update if problem.polar_fields else 0.0,
+        "residual_s": t_residual, "jacobian_s": t_jacobian,
+        "residual_cells_per_s": cells / t_residual, "jacobian_cells_per_s": cells / t_jacobian,
+        # printed norms let a reader compare serial and parallel runs
+        "residual_norm": b.norm(), "jacobian_norm": A.norm(PETSc.NormType.FROBENIUS),
+    }
+    b.destroy()
+    A.destroy()
+    return result
+
+
+def newton_case(comm: MPI.Comm, law_name: str, quick: bool) -> dict[str, Any]:
+    raw = tomllib.loads(TWISTING_BAR.read_text())
+    raw = copy.deepcopy(raw)
+    raw["material"] = [{"region": "all", "law": law_name, **law_parameters(law_name)}]
+    if quick:
+        raw["mesh"]["cells"] = [10, 2, 2]
+    directory = Path(comm.bcast(tempfile.mkdtemp(prefix="bench_newton_") if comm.rank == 0 else None, root=0))
+    raw["output"] = {"dir": str(directory), "xdmf": False, "vtu": False, "png": False}
+    config = parse(raw, TWISTING_BAR.parent)
+    comm.Barrier()
+    start = time.perf_counter()
+    try:
+        summary = run(config, directory, comm)
+    except SolveFailed:
+        summary = json.loads((directory / "summary.json").read_text()) if comm.rank == 0 else None
+        summary = comm.bcast(summary, root=0)
+    wall = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+    comm.Barrier()
+    if comm.rank == 0:
+        shutil.rmtree(directory, ignore_errors=True)
+    steps = summary["steps"]
+    return {
+        "law": law_name, "cells": summary["cells"], "dofs": summary["dofs"], "ranks": comm.size,
+        "newton_iterations": [s["newton_iterations"] for s in steps],
+        "converged": [s["converged"] for s in steps],
+        "load_factors": [s["load_factor"] for s in steps],
+        "total_newton_iterations": sum(s["newton_iterations"] for s in steps),
+        "failed_attempts": sum(not s["converged"] for s in steps),
+        "wall_time_s": wall, "completed": summary.get("status") == "completed",
+    }
+
+
+def assembly_table(results: list[dict[str, Any]]) -> str:
+    lines = ["| law | P | q | cells | compile R + J (s) | polar update (s) | residual (s) | residual (cells/s) "
+             "| Jacobian (s) | Jacobian (cells/s) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        polar = f"{r['polar_update_s']:.3f}" if r["polar_update_s"] else "-"
+        lines.append(f"| {r['law']} | {r['degree']} | {r['quadrature_degree']} | {r['cells']} "
+                     f"| {r['compile_residual_s']:.1f} + {r['compile_jacobian_s']:.1f} | {polar} "
+                     f"| {r['residual_s']:.3f} | {r['residual_cells_per_s']:.3g} "
+                     f"| {r['jacobian_s']:.3f} | {r['jacobian_cells_per_s']:.3g} |")
+    return "\n".join(lines)
+
+
+def newton_table(results: list[dict[str, Any]]) -> str:
+    lines = ["| law | Newton iterations per step (x = failed attempt, cut back) | total | wall (s) | completed |",
+             "|---|---|---|---|---|"]
+    for r in results:
+        its = " ".join(f"{n}{'' if ok else 'x'}" for n, ok in zip(r["newton_iterations"], r["converged"]))
+        lines.append(f"| {r['law']} | {its} | {r['total_newton_iterations']} | {r['wall_time_s']:.1f} "
+                     f"| {'yes' if r['completed'] else 'NO'} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small meshes (smoke test)")
+    parser.add_argument("--laws", nargs="+", default=list(forms.LAWS), choices=list(forms.LAWS))
+    parser.add_argument("--repeats", type=int, default=3, help="timed repetitions (best is kept)")
+    parser.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
+    parser.add_argument("--skip", choices=("assembly", "newton"), default=None, help="leave out one part")
+    args = parser.parse_args(argv)
+    comm = MPI.COMM_WORLD
+    root = comm.rank == 0
+    logging.getLogger("model").setLevel(logging.WARNING if root else logging.ERROR)
+
+    def say(text: str = "") -> None:
+        if root:
+            print(text, flush=True)
+
+    start = time.perf_counter()
+    figures: dict[str, Any] = {"ranks": comm.size, "quick": args.quick, "repeats": args.repeats}
+    if args.skip != "assembly":
+        cache_dir = comm.bcast(tempfile.mkdtemp(prefix="bench_jit_") if root else None, root=0)
+        assembly = []
+        for degree, quadrature_degree, sizes in DISCRETIZATIONS:
+            n = sizes[1] if args.quick else sizes[0]
+            for law_name in args.laws:
+                r = assembly_case(comm, law_name, degree, quadrature_degree, n, args.repeats, cache_dir)
+                say(f"assembly {law_name:13s} P{degree} q{quadrature_degree} {r['cells']} cells: "
+                    f"residual {r['residual_s']:.3f} s, Jacobian {r['jacobian_s']:.3f} s, "
+                    f"|b| {r['residual_norm']:.10e} |A|_F {r['jacobian_norm']:.10e}")
+                assembly.append(r)
+        comm.Barrier()
+        if root:
+            shutil.rmtree(cache_dir, ignore_errors=True)
+        figures["assembly"] = assembly
+    if args.skip != "newton":
+        newton = []
+        for law_name in args.laws:
+            r = newton_case(comm, law_name, args.quick)
+            say(f"twisting bar {law_name:13s} newton {r['newton_iterations']} "
+                f"{'completed' if r['completed'] else 'FAILED'} in {r['wall_time_s']:.1f} s")
+            newton.append(r)
+        figures["newton"] = newton
+    figures["total_time_s"] = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+    if "assembly" in figures:
+        say(f"\n## Assembly ({comm.size} rank{'s' if comm.size > 1 else ''}, best of {args.repeats})\n")
+        say(assembly_table(figures["assembly"]))
+    if "newton" in figures:
+        n = figures["newton"][0]
+        say(f"\n## Newton iterations, twisting bar ({n['cells']} cells, {n['dofs']} dofs, "
+            f"{comm.size} rank{'s' if comm.size > 1 else ''})\n")
+        say(newton_table(figures["newton"]))
+    say(f"\ntotal time {figures['total_time_s']:.0f} s")
+    if args.json is not None and root:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(figures, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
