@@ -11,6 +11,7 @@ Names of regions and boundaries are checked against the mesh later
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -123,7 +124,8 @@ def _tables(value: Any, key: str) -> list[dict[str, Any]]:
 def _known(table: dict[str, Any], allowed: set[str], key: str) -> None:
     for k in table:
         if k not in allowed:
-            _fail(f"{key}.{k}" if key else k, f"unknown key (allowed: {', '.join(sorted(allowed))})")
+            what = "unknown key" if key else "unknown section"
+            _fail(f"{key}.{k}" if key else k, f"{what} (allowed: {', '.join(sorted(allowed))})")
 
 
 def _number(value: Any, key: str) -> float:
@@ -156,11 +158,11 @@ def _boolean(value: Any, key: str) -> bool:
     return value
 
 
-def _vector(value: Any, key: str, length: int | None = 3) -> tuple[float, ...]:
+def _vector(value: Any, key: str, length: int | None = 3, why: str = "") -> tuple[float, ...]:
     if not isinstance(value, list):
         _fail(key, f"must be an array of numbers, got {value!r}")
     if length is not None and len(value) != length:
-        _fail(key, f"must have {length} entries, got {len(value)}")
+        _fail(key, f"must have {length} {'entry' if length == 1 else 'entries'}{why}, got {len(value)}: {value!r}")
     return tuple(_number(v, f"{key}[{i}]") for i, v in enumerate(value))
 
 
@@ -175,7 +177,7 @@ _MESH_KEYS = {"generator", "file", "regions", "boundaries", "cell_data", "facet_
 
 
 def _mesh(raw: dict[str, Any], base: Path) -> MeshConfig:
-    from meshes import GENERATORS
+    from meshes import GENERATORS, generator_parameters
 
     has_gen, has_file = "generator" in raw, "file" in raw
     if has_gen == has_file:
@@ -190,11 +192,20 @@ def _mesh(raw: dict[str, Any], base: Path) -> MeshConfig:
         for k in ("regions", "boundaries", "cell_data", "facet_data"):
             if k in raw:
                 _fail(f"mesh.{k}", "only applies to mesh.file")
+        accepted = generator_parameters(gen)
+        for k in params:
+            if k not in accepted:
+                _fail(f"mesh.{k}", f"unknown parameter of generator {gen!r} (allowed: generator, "
+                      f"{', '.join(accepted)})")
         return MeshConfig(generator=gen, params=params)
     if params:
         _fail(f"mesh.{sorted(params)[0]}", "unknown key for a mesh file (allowed: file, regions, boundaries, "
               "cell_data, facet_data)")
     path = Path(_string(raw["file"], "mesh.file"))
+    if path.suffix == ".msh":
+        for k in ("regions", "boundaries", "cell_data", "facet_data"):
+            if k in raw:
+                _fail(f"mesh.{k}", "a gmsh .msh file names its physical groups itself; remove this key")
     if not path.is_absolute():
         path = base / path
     if not path.is_file():
@@ -229,9 +240,20 @@ def _material(raw: dict[str, Any], key: str) -> MaterialConfig:
         law = forms.make_law(law_name, **params)
     except forms.ParameterError as err:
         message = str(err).removeprefix(f"{law_name}: ")
-        param = next((p for p in params if message.startswith((f"{p} ", f"unknown parameter {p!r}"))), None)
-        _fail(f"{key}.{param}" if param else key, f"{law_name}: {message}")
+        _fail(_parameter_key(key, message, params), f"{law_name}: {message}")
     return MaterialConfig(region, law)
+
+
+def _parameter_key(key: str, message: str, params: dict[str, Any]) -> str:
+    """The key a law's ParameterError message is about: the parameter it starts with or names."""
+    match = re.match(r"(?:unknown parameter '(\w+)'|(\w+) (?:=|is missing))", message)
+    if match:
+        return f"{key}.{match.group(1) or match.group(2)}"
+    if "not both" in message:  # (E, nu) and (mu, lmbda) together: name the first of the second pair given
+        second = [p for p in ("mu", "lmbda") if p in params]
+        if second:
+            return f"{key}.{second[0]}"
+    return key
 
 
 def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
@@ -239,7 +261,9 @@ def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
     if "on" not in raw:
         _fail(f"{key}.on", "missing (the name of a boundary)")
     on = _string(raw["on"], f"{key}.on")
-    kind = _string(raw.get("type", ""), f"{key}.type", BOUNDARY_TYPES)
+    if "type" not in raw:
+        _fail(f"{key}.type", f"missing (one of {', '.join(BOUNDARY_TYPES)})")
+    kind = _string(raw["type"], f"{key}.type", BOUNDARY_TYPES)
     if kind == "displacement":
         comps = raw.get("components", [0, 1, 2])
         if not isinstance(comps, list) or not comps:
@@ -250,7 +274,7 @@ def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
         if ("value" in raw) == ("expression" in raw):
             _fail(f"{key}.value", "give exactly one of value or expression")
         if "value" in raw:
-            value = _vector(raw["value"], f"{key}.value", len(comps))
+            value = _vector(raw["value"], f"{key}.value", len(comps), f" (one per entry of components {list(comps)})")
             return BoundaryConfig(on, kind, comps, value=value)
         expr = raw["expression"]
         if not isinstance(expr, list) or len(expr) != len(comps):

@@ -108,36 +108,42 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
     sets (NSET) become boundaries made of the boundary triangles whose vertices are
     all in the set. Untagged tetrahedra form the region "all" only.
     """
-    import meshio
-
-    m = meshio.read(path)
+    path = Path(path)
+    m = _meshio_read(path)
     tet_blocks = [i for i, c in enumerate(m.cells) if c.type in ("tetra", "tetra10")]
     if not tet_blocks:
         raise ValueError(f"{path}: no tetrahedra in the mesh (found {', '.join(c.type for c in m.cells)})")
     tri_blocks = [i for i, c in enumerate(m.cells) if c.type in ("triangle", "triangle6")]
 
-    def block_data(blocks: list[int], name: str | None, kind: str) -> np.ndarray | None:
+    def block_data(blocks: list[int], name: str | None, key: str) -> np.ndarray | None:
         candidates = [name] if name else [k for k, v in m.cell_data.items()
                                           if all(np.issubdtype(np.asarray(v[b]).dtype, np.integer) for b in blocks)]
         if name and name not in m.cell_data:
-            raise ValueError(f"{path}: no cell data named {name!r} for the {kind} "
+            raise ValueError(f"mesh.{key}: {path.name} has no cell data named {name!r} "
                              f"(found: {', '.join(m.cell_data) or 'none'})")
+        if name and not all(np.issubdtype(np.asarray(m.cell_data[name][b]).dtype, np.integer) for b in blocks):
+            raise ValueError(f"mesh.{key}: the cell data {name!r} of {path.name} is not integer")
         if not candidates or not blocks:
             return None
         return np.concatenate([np.asarray(m.cell_data[candidates[0]][b]).reshape(-1) for b in blocks])
 
     cells = np.concatenate([m.cells[b].data[:, :4] for b in tet_blocks]).astype(np.int64)
-    ctags = block_data(tet_blocks, cell_data, "tetrahedra")
+    ctags = block_data(tet_blocks, cell_data, "cell_data")
     cell_tags = np.zeros(len(cells), dtype=np.int32) if ctags is None else ctags.astype(np.int32)
     region_names = dict(regions)
-    extra_cells, extra_tags = [], []
-    block_offset = {b: sum(len(m.cells[bb].data) for bb in tet_blocks if bb < b) for b in tet_blocks}
+    cell_sets = getattr(m, "cell_sets", None) or {}
+
+    def set_members(per_block: list, blocks: list[int]) -> np.ndarray:
+        """Indices (into the concatenation of ``blocks``) of a named cell set's members in those blocks."""
+        offset = np.cumsum([0, *(len(m.cells[b].data) for b in blocks)])
+        parts = [np.asarray(per_block[b], dtype=np.int64).reshape(-1) + offset[i] for i, b in enumerate(blocks)
+                 if b < len(per_block) and per_block[b] is not None]
+        return np.concatenate(parts) if parts else np.empty(0, dtype=np.int64)
+
     next_tag = int(max([0, *np.unique(cell_tags).tolist(), *region_names.values()])) + 1
     extra_cells, extra_tags = [], []
-    for set_name, per_block in getattr(m, "cell_sets", {}).items():
-        parts = [np.asarray(per_block[b], dtype=np.int64) + block_offset[b]
-                 for b in tet_blocks if b < len(per_block) and per_block[b] is not None]
-        members = np.concatenate(parts) if parts else np.empty(0, dtype=np.int64)
+    for set_name, per_block in cell_sets.items():
+        members = set_members(per_block, tet_blocks)
         if members.size == 0 or set_name in region_names:
             continue
         extra_cells.append(cells[members])
@@ -149,7 +155,7 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
             raise ValueError(f"mesh.regions.{tag_name}: no tetrahedron has tag {tag}")
     if tri_blocks:
         facets = np.concatenate([m.cells[b].data[:, :3] for b in tri_blocks]).astype(np.int64)
-        ftags = block_data(tri_blocks, facet_data, "triangles")
+        ftags = block_data(tri_blocks, facet_data, "facet_data")
         facet_tags = np.zeros(len(facets), dtype=np.int32) if ftags is None else ftags.astype(np.int32)
     else:
         facets, facet_tags = np.empty((0, 3), dtype=np.int64), np.empty(0, dtype=np.int32)
@@ -157,11 +163,22 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
         if not np.any(facet_tags == tag):
             raise ValueError(f"mesh.boundaries.{tag_name}: no triangle has tag {tag}")
     boundary_names = dict(boundaries)
-    point_sets = getattr(m, "point_sets", {})
+    point_sets = getattr(m, "point_sets", None) or {}
+    next_tag = int(max([0, *np.unique(facet_tags).tolist(), *boundary_names.values()])) + 1
+    nf, nt = [facets], [facet_tags]
+    if tri_blocks:
+        # named sets of triangles (Abaqus ELSET of S3 elements) are boundaries
+        tri_all = np.concatenate([m.cells[b].data[:, :3] for b in tri_blocks]).astype(np.int64)
+        for set_name, per_block in cell_sets.items():
+            members = set_members(per_block, tri_blocks)
+            if members.size == 0 or set_name in boundary_names:
+                continue
+            boundary_names[set_name] = next_tag
+            nf.append(tri_all[members])
+            nt.append(np.full(len(members), next_tag, dtype=np.int32))
+            next_tag += 1
     if point_sets:
-        next_tag = int(max([0, *np.unique(facet_tags).tolist(), *boundary_names.values()])) + 1
         exterior = exterior_triangles(cells)
-        nf, nt = [facets], [facet_tags]
         for set_name, ids in point_sets.items():
             if set_name in boundary_names:
                 continue
@@ -173,7 +190,7 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
                 nf.append(tris)
                 nt.append(np.full(len(tris), next_tag, dtype=np.int32))
                 next_tag += 1
-        facets, facet_tags = np.concatenate(nf), np.concatenate(nt)
+    facets, facet_tags = np.concatenate(nf), np.concatenate(nt)
     if extra_cells:
         # cells in named sets are duplicated with the set's tag; _combine merges them into codes
         cells = np.concatenate([cells, *extra_cells])
@@ -182,6 +199,21 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
                     np.pad(m.points, ((0, 0), (0, 3 - m.points.shape[1]))),
                     cells=cells, cell_tags=cell_tags, facets=facets, facet_tags=facet_tags,
                     region_names=region_names, boundary_names=boundary_names)
+
+
+def _meshio_read(path: Path):  # noqa: ANN202 - a meshio.Mesh
+    """meshio.read, but a file it cannot parse raises ValueError (meshio prints and calls sys.exit)."""
+    import contextlib
+    import io
+
+    import meshio
+
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
+            return meshio.read(path)
+    except SystemExit:
+        raise ValueError(" ".join(printed.getvalue().split()) or f"meshio cannot read {path}") from None
 
 
 def exterior_triangles(cells: np.ndarray) -> np.ndarray:

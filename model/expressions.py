@@ -24,6 +24,18 @@ _NODES = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Constant, ast.Name, ast.Lo
           ast.operator, ast.unaryop)
 
 
+class _FloatLiterals(ast.NodeTransformer):
+    """Integer constants -> floats, except the indices of x[i]."""
+
+    def visit_Subscript(self, node: ast.Subscript) -> ast.Subscript:
+        return node
+
+    def visit_Constant(self, node: ast.Constant) -> ast.Constant:
+        if type(node.value) is int:
+            return ast.copy_location(ast.Constant(float(node.value)), node)
+        return node
+
+
 def uses_load_factor(text: str) -> bool:
     """True when the expression mentions the load factor t."""
     return any(isinstance(n, ast.Name) and n.id == "t" for n in ast.walk(ast.parse(text, mode="eval")))
@@ -42,7 +54,12 @@ def compile_expression(text: str) -> Callable[..., np.ndarray]:
             raise ValueError(f"invalid expression {text!r}: unknown name {node.id!r} (use x[0], x[1], x[2], t)")
         if isinstance(node, ast.Call) and not (isinstance(node.func, ast.Name) and node.func.id in ALLOWED):
             raise ValueError(f"invalid expression {text!r}: only {', '.join(sorted(ALLOWED))} may be called")
-    code = compile(tree, "<expression>", "eval")
+        if isinstance(node, ast.Subscript) and not (
+                isinstance(node.value, ast.Name) and node.value.id == "x" and isinstance(node.slice, ast.Constant)
+                and type(node.slice.value) is int and node.slice.value in (0, 1, 2)):
+            raise ValueError(f"invalid expression {text!r}: only x[0], x[1] and x[2] may be indexed")
+    # integer literals become floats, so "9**9**9**9" overflows at once instead of computing a huge integer
+    code = compile(ast.fix_missing_locations(_FloatLiterals().visit(tree)), "<expression>", "eval")
 
     def evaluate(x: np.ndarray, t: float = 1.0) -> np.ndarray:
         value = eval(code, {"__builtins__": {}}, {"x": x, "t": t, **ALLOWED})  # noqa: S307 - checked AST above

@@ -27,7 +27,11 @@ def load_mesh_data(cfg: MeshConfig) -> meshes.MeshData:
         try:
             return meshes.generate(cfg.generator, **cfg.params)
         except (TypeError, ValueError) as err:
-            raise ConfigError(f"mesh: {err}") from None
+            # generator messages read "<generator>: <parameter>[i] must be ...": name mesh.<parameter>
+            message = " ".join(str(err).split())
+            param = message.removeprefix(f"{cfg.generator}: ").split(" ")[0].split("[")[0]
+            key = f"mesh.{param}" if param in cfg.params else "mesh"
+            raise ConfigError(f"{key}: {message}") from None
     assert cfg.file is not None
     try:
         if cfg.file.suffix == ".msh":
@@ -40,7 +44,7 @@ def load_mesh_data(cfg: MeshConfig) -> meshes.MeshData:
     except ConfigError:
         raise
     except Exception as err:  # noqa: BLE001 - any reader failure is reported against mesh.file
-        message = str(err)
+        message = " ".join(str(err).split())  # one line
         if message.startswith("mesh."):
             raise ConfigError(message) from None
         raise ConfigError(f"mesh.file: cannot read {cfg.file}: {message}") from None
@@ -48,15 +52,21 @@ def load_mesh_data(cfg: MeshConfig) -> meshes.MeshData:
 
 def make_domain(cfg: MeshConfig, comm: MPI.Comm) -> Domain:
     """Build the mesh on rank 0 and distribute it; a failure on rank 0 is raised on every rank."""
-    data, error = None, None
+    data, error, failure = None, None, None
     if comm.rank == 0:
         try:
             data = load_mesh_data(cfg)
         except ConfigError as err:
             error = str(err)
-    error = comm.bcast(error, root=0)
+        except Exception as err:  # noqa: BLE001 - re-raised below, after telling the other ranks
+            failure = err
+    error, other = comm.bcast((error, None if failure is None else f"{type(failure).__name__}: {failure}"), root=0)
     if error is not None:
         raise ConfigError(error)
+    if other is not None:
+        if failure is not None:
+            raise failure
+        raise RuntimeError(f"building the mesh failed on rank 0: {other}")
     return build_domain(comm, data)
 
 
@@ -105,6 +115,10 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     """Domain, problem with all loads and boundary conditions, and probes of a configuration."""
     domain = make_domain(config.mesh, comm)
     _check_names(config, domain)
+    probes = Probes(domain.mesh, {p.name: p.point for p in config.probes})
+    if probes.missing:  # the same on every rank (reduced over ranks)
+        i = [p.name for p in config.probes].index(probes.missing[0])
+        raise ConfigError(f"probe[{i}].point: {list(config.probes[i].point)} is outside the mesh")
     disc = config.discretization
     problem = ElasticityProblem(domain, [(m.region, m.law) for m in config.materials], disc.degree,
                                 disc.quadrature_degree, disc.formulation)
@@ -121,8 +135,4 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
             problem.add_pressure(b.on, b.value[0])
     for f in config.body_forces:
         problem.add_body_force(f.region, f.value)
-    probes = Probes(domain.mesh, {p.name: p.point for p in config.probes})
-    if probes.missing:
-        i = [p.name for p in config.probes].index(probes.missing[0])
-        raise ConfigError(f"probe[{i}].point: {list(config.probes[i].point)} is outside the mesh")
     return Setup(domain, problem, probes)

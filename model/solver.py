@@ -25,7 +25,7 @@ DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "snes_linesearch_type": "bt",
     "snes_rtol": 1e-10,
     "snes_atol": 1e-12,
-    "snes_stol": 1e-14,
+    "snes_stol": 1e-12,
     "snes_max_it": 30,
     "ksp_type": "preonly",
     "pc_type": "lu",

@@ -1,0 +1,70 @@
+"""Serial and 2-rank runs of the same configuration give the same probes and reactions to 1e-10 relative.
+
+The serial run is made in this process; the 2-rank run by ``mpirun -n 2 python -m model run``.
+Cook's membrane (Taylor-Hood) is a non-homogeneous state, so the comparison means something.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+from conftest import ROOT, example, run_raw, serial_only
+
+
+def write_toml(raw: dict, path: Path) -> None:
+    """A minimal TOML writer for the example dictionaries (tables, arrays of tables, scalars, arrays)."""
+
+    def value(v) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, list):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
+        return repr(v)
+
+    lines = []
+    for section, content in raw.items():
+        blocks = content if isinstance(content, list) else [content]
+        for block in blocks:
+            lines.append(f"[[{section}]]" if isinstance(content, list) else f"[{section}]")
+            lines += [f"{k} = {value(v)}" for k, v in block.items()]
+            lines.append("")
+    path.write_text("\n".join(lines))
+    assert tomllib.loads(path.read_text()) == raw
+
+
+@serial_only
+def test_two_ranks_match_serial(tmp_path: Path) -> None:
+    raw = example("cook")
+    raw["mesh"]["cells"] = 8
+    raw["loading"] = {"steps": 2}
+    raw["output"] = {"xdmf": False, "vtu": False, "png": False}
+    config = tmp_path / "cook.toml"
+    write_toml(raw, config)
+    serial = run_raw(raw, tmp_path / "serial")
+    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "PYTHONPATH": str(ROOT)}
+    cmd = ["mpirun", "-n", "2", "--oversubscribe", sys.executable, "-m", "model", "run", str(config),
+           "--out", str(tmp_path / "parallel")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    parallel = json.loads((tmp_path / "parallel" / "summary.json").read_text())
+    assert parallel["ranks"] == 2 and serial["ranks"] == 1
+    assert parallel["dofs"] == serial["dofs"]
+    for s, p in zip(serial["steps"], parallel["steps"], strict=True):
+        assert s["load_factor"] == p["load_factor"]
+        for name in s["probes"]:
+            a, b = np.array(s["probes"][name]), np.array(p["probes"][name])
+            assert np.max(np.abs(a - b)) <= 1e-10 * np.max(np.abs(a)), (name, a, b)
+        for name in s["reactions"]:
+            a, b = np.array(s["reactions"][name]), np.array(p["reactions"][name])
+            assert np.max(np.abs(a - b)) <= 1e-10 * np.max(np.abs(a)), (name, a, b)
