@@ -234,13 +234,23 @@ def _material(raw: dict[str, Any], key: str) -> MaterialConfig:
         _fail(f"{key}.law", f"missing (choose from {', '.join(sorted(forms.LAWS))})")
     law_name = _string(raw["law"], f"{key}.law", tuple(sorted(forms.LAWS)))
     params = {k: v for k, v in raw.items() if k not in ("region", "law")}
-    for k, v in params.items():
-        _number(v, f"{key}.{k}")
+
+    def check_numbers() -> None:
+        for k, v in params.items():
+            _number(v, f"{key}.{k}")
+
+    # errors in the order: unknown parameter (e.g. a misspelt "region"), wrong type, missing or out of range
     try:
         law = forms.make_law(law_name, **params)
     except forms.ParameterError as err:
         message = str(err).removeprefix(f"{law_name}: ")
+        if not message.startswith("unknown parameter"):
+            check_numbers()
         _fail(_parameter_key(key, message, params), f"{law_name}: {message}")
+    except TypeError:
+        check_numbers()
+        raise
+    check_numbers()
     return MaterialConfig(region, law)
 
 

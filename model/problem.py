@@ -86,6 +86,7 @@ class ElasticityProblem:
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags, metadata=metadata)
         self.F = deformation_gradient(self.u)
         self.polar_fields: list[PolarField] = []
+        self._state_stamp: np.ndarray | None = None
         self.internal = 0
         self.external = 0
         self.strain_energy = 0
@@ -203,9 +204,23 @@ class ElasticityProblem:
                     g.interpolate(lambda x, f=f: f(x, value))
 
     def update_state(self) -> None:
-        """Refresh state stored at quadrature points (polar rotations) from the current solution."""
+        """Refresh state stored at quadrature points (polar rotations) from the current solution.
+
+        Skipped when the solution is unchanged since the last refresh (SNES evaluates the
+        residual and the Jacobian at the same iterate; outputs evaluate it once more).
+        """
+        if not self.polar_fields:
+            return
+        current = self.solution.x.array
+        if self._state_stamp is not None and np.array_equal(self._state_stamp, current):
+            return
         for polar in self.polar_fields:
             polar.update()
+        self._state_stamp = current.copy()
+
+    def invalidate_state(self) -> None:
+        """Force the next update_state to recompute (after changing a coefficient the state depends on)."""
+        self._state_stamp = None
 
     # --- derived quantities ---------------------------------------------------------------------
 
