@@ -9,6 +9,7 @@ tuple of codes that contain it, which is what ufl.Measure accepts as subdomain i
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -110,6 +111,8 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
     """
     path = Path(path)
     m = _meshio_read(path)
+    if path.suffix.lower() == ".inp":
+        _fix_abaqus_element_sets(path, m)
     tet_blocks = [i for i, c in enumerate(m.cells) if c.type in ("tetra", "tetra10")]
     if not tet_blocks:
         raise ValueError(f"{path}: no tetrahedra in the mesh (found {', '.join(c.type for c in m.cells)})")
@@ -199,6 +202,36 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
                     np.pad(m.points, ((0, 0), (0, 3 - m.points.shape[1]))),
                     cells=cells, cell_tags=cell_tags, facets=facets, facet_tags=facet_tags,
                     region_names=region_names, boundary_names=boundary_names)
+
+
+def _fix_abaqus_element_sets(path: Path, m) -> None:  # noqa: ANN001 - a meshio.Mesh
+    """Put the ELSET=name of each ``*ELEMENT`` line on its own block.
+
+    meshio 5 gives the i-th ``*ELEMENT, ..., ELSET=`` it meets to block i, which is
+    wrong when an earlier ``*ELEMENT`` block has no ELSET (e.g. tetrahedra without a
+    set followed by ``*ELEMENT, TYPE=S3, ELSET=load``). Only done when each block
+    is one ``*ELEMENT`` line (no ``*INCLUDE``) and the set has no ``*ELSET`` of its own.
+    """
+    headers, explicit = [], set()
+    for line in path.read_text(errors="replace").splitlines():
+        keyword, _, params = line.partition(",")
+        keyword = keyword.strip().replace("*", "").upper()
+        if line.startswith("**") or not line.startswith("*"):
+            continue
+        if keyword == "INCLUDE":
+            return
+        found = re.search(r"\bELSET\s*=\s*([^,\s]+)", params, flags=re.IGNORECASE)
+        if keyword == "ELEMENT":
+            headers.append(found.group(1) if found else None)
+        elif keyword == "ELSET" and found:
+            explicit.add(found.group(1))
+    if len(headers) != len(m.cells):
+        return
+    for block, name in enumerate(headers):
+        if name is None or name in explicit:
+            continue
+        m.cell_sets[name] = [np.arange(len(c.data), dtype=np.int32) if i == block else np.empty(0, dtype=np.int32)
+                             for i, c in enumerate(m.cells)]
 
 
 def _meshio_read(path: Path):  # noqa: ANN202 - a meshio.Mesh

@@ -17,8 +17,12 @@ import numpy as np
 
 def render(vtu: Path, png: Path, title: str = "") -> None:
     """Deformed mesh (points + u) coloured by the cell data von_mises, reference surface as wireframe."""
+    import warnings
+
     import meshio
     import pyvista
+
+    warnings.filterwarnings("ignore", category=pyvista.PyVistaFutureWarning)
 
     pyvista.OFF_SCREEN = True
     data = meshio.read(vtu)
@@ -27,15 +31,25 @@ def render(vtu: Path, png: Path, title: str = "") -> None:
     celltypes = np.full(len(cells), 10, dtype=np.uint8)  # VTK_TETRA
     points = np.asarray(data.points, dtype=np.float64)
     grid = pyvista.UnstructuredGrid(vtk_cells, celltypes, points + data.point_data["u"])
-    grid.cell_data["von Mises stress"] = np.asarray(data.cell_data["von_mises"][0]).reshape(-1)
+    stress = np.asarray(data.cell_data["von_mises"][0]).reshape(-1)
+    grid.cell_data["von Mises stress"] = stress
+    low, high = float(stress.min()), float(stress.max())
+    if high - low <= 1e-6 * max(abs(high), 1e-300):  # homogeneous: don't colour rounding noise
+        low, high = 0.9 * low, 1.1 * high if high > 0 else 1.0
     reference = pyvista.UnstructuredGrid(vtk_cells, celltypes, points)
     plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 900))
     plotter.add_mesh(reference.extract_surface(), style="wireframe", color="grey", opacity=0.15)
     plotter.add_mesh(grid, scalars="von Mises stress", cmap="viridis", show_edges=True, edge_color="#303030",
-                     line_width=0.5, scalar_bar_args={"title": "von Mises stress"})
+                     line_width=0.5, clim=(low, high), scalar_bar_args={"title": "von Mises stress"})
     if title:
         plotter.add_text(title, font_size=10)
-    plotter.view_isometric()
+    extent = np.ptp(points + data.point_data["u"], axis=0)
+    thin = int(np.argmin(extent))
+    if extent[thin] < 0.15 * extent.max():  # a plate: look along its thin axis
+        (plotter.view_yz, plotter.view_xz, plotter.view_xy)[thin]()
+    else:
+        plotter.view_isometric()
+    plotter.reset_camera()
     plotter.screenshot(str(png))
     plotter.close()
 

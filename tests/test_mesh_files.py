@@ -124,33 +124,45 @@ def test_abaqus_inp_written_by_meshio(shared_tmp: Path, reference: dict[str, Any
     assert_same(last_step(file_config(path), shared_tmp / "out"), reference)
 
 
-def write_inp_by_hand(data: meshes.MeshData, path: Path) -> None:
-    """An Abaqus deck as other tools write it: one *ELEMENT block per ELSET, S3 triangles in an ELSET
-    (xmax, loaded) and NSETs (the three supported faces), 1-based ids with gaps, 8 ids per line."""
+def write_inp_by_hand(data: meshes.MeshData, path: Path, element_sets: bool) -> None:
+    """An Abaqus deck as other tools write it: 1-based node ids with gaps, S3 triangles in an ELSET (xmax,
+    the loaded face), NSETs for the three supported faces, 8 ids per line, comments and lower case.
+
+    element_sets: one ``*ELEMENT, TYPE=C3D4, ELSET=name`` block per region; else a single C3D4 block
+    without a set and the regions as ``*ELSET`` lists of element ids (written after the S3 block).
+    """
     node_id = 1000 + 3 * np.arange(len(data.points))  # non-consecutive node numbers
 
-    def id_lines(ids: np.ndarray) -> str:
-        return "\n".join(", ".join(str(i) for i in ids[k:k + 8]) for k in range(0, len(ids), 8))
+    def id_lines(ids: np.ndarray) -> list[str]:
+        return [", ".join(str(i) for i in ids[k:k + 8]) for k in range(0, len(ids), 8)]
 
-    lines = ["*HEADING", "split box written by hand", "** a comment", "*NODE"]
+    def element_lines(first: int, conn: np.ndarray) -> list[str]:
+        return [f"{first + k}, " + ", ".join(str(n) for n in node_id[c]) for k, c in enumerate(conn)]
+
+    lines = ["*Heading", "split box written by hand", "** a comment", "*Node"]
     lines += [f"{node_id[i]}, {x!r}, {y!r}, {z!r}" for i, (x, y, z) in enumerate(data.points.tolist())]
-    element = 1
-    for name, tag in data.region_names.items():
-        lines.append(f"*ELEMENT, TYPE=C3D4, ELSET={name}")
-        for cell in data.cells[data.cell_tags == tag]:
-            lines.append(f"{element}, " + ", ".join(str(n) for n in node_id[cell]))
-            element += 1
-    lines.append("*ELEMENT, TYPE=S3, ELSET=xmax")
-    for tri in data.boundary_facets("xmax"):
-        lines.append(f"{element}, " + ", ".join(str(n) for n in node_id[tri]))
-        element += 1
+    order = np.argsort(data.cell_tags, kind="stable")
+    if element_sets:
+        first = 1
+        for name, tag in data.region_names.items():
+            conn = data.cells[data.cell_tags == tag]
+            lines += [f"*Element, type=C3D4, elset={name}", *element_lines(first, conn)]
+            first += len(conn)
+    else:
+        lines += ["*ELEMENT, TYPE=C3D4", *element_lines(1, data.cells[order])]
+    xmax = data.boundary_facets("xmax")
+    lines += ["*ELEMENT, TYPE=S3, ELSET=xmax", *element_lines(len(data.cells) + 1, xmax)]
+    if not element_sets:
+        for name, tag in data.region_names.items():
+            lines += [f"*ELSET, ELSET={name}", *id_lines(1 + np.flatnonzero(data.cell_tags[order] == tag))]
     for name in ("xmin", "ymin", "zmin"):
-        lines += [f"*NSET, NSET={name}", id_lines(node_id[np.unique(data.boundary_facets(name))])]
+        lines += [f"*Nset, nset={name}", *id_lines(node_id[np.unique(data.boundary_facets(name))])]
     path.write_text("\n".join(lines) + "\n")
 
 
-def test_abaqus_inp_written_by_hand(shared_tmp: Path, reference: dict[str, Any]) -> None:
-    path = on_rank0(shared_tmp, "hand.inp", lambda p: write_inp_by_hand(split_box(), p))
+@pytest.mark.parametrize("element_sets", [True, False], ids=["element-sets", "elset-lists"])
+def test_abaqus_inp_written_by_hand(shared_tmp: Path, reference: dict[str, Any], element_sets: bool) -> None:
+    path = on_rank0(shared_tmp, "hand.inp", lambda p: write_inp_by_hand(split_box(), p, element_sets))
     assert_same(last_step(file_config(path), shared_tmp / "out"), reference)
 
 
