@@ -14,6 +14,11 @@ from mpi4py import MPI
 
 
 def _configure_logging() -> None:
+    # The JIT (ffcx -> setuptools) lowers the root logger to INFO and would print its compiler
+    # command lines; a root handler of our own that passes only warnings keeps the screen clean.
+    quiet = logging.StreamHandler(sys.stderr)
+    quiet.setLevel(logging.WARNING)
+    logging.root.handlers[:] = [quiet]
     handler = logging.StreamHandler(sys.stdout)
     handler.setFormatter(logging.Formatter("%(message)s"))
     logger = logging.getLogger("model")

@@ -11,7 +11,8 @@ from __future__ import annotations
 import basix
 import numpy as np
 import ufl
-from dolfinx import fem, mesh as dmesh
+from dolfinx import fem
+from dolfinx import mesh as dmesh
 
 from forms.polar import linearised_rotation, polar_rotation
 

@@ -110,7 +110,10 @@ class NewtonSolver:
         )
 
     def unconstrained_residual(self) -> PETSc.Vec:
-        """R(u) = f_int - f_ext without Dirichlet rows: at a solution, its constrained entries are the support forces."""
+        """R(u) = f_int - f_ext with no Dirichlet rows replaced.
+
+        At a solution its entries at constrained dofs are the forces the supports exert.
+        """
         self.problem.update_state()
         b = fem_petsc.assemble_vector(self.residual_form)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)

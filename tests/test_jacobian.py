@@ -13,12 +13,12 @@ import pytest
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
+from test_patch import PARAMS
 
 import forms
 import meshes
 from model.domain import build_domain
 from model.problem import ElasticityProblem
-from test_patch import PARAMS
 
 
 def deformed_problem(law: str, degree: int, formulation: str) -> ElasticityProblem:
