@@ -7,7 +7,7 @@ import time
 
 import gmsh
 
-from meshes._gmsh import gmsh_session
+from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, gmsh_session
 from meshes._validate import positive_float
 from meshes.data import MeshData, from_gmsh_model
 
@@ -20,7 +20,6 @@ CYLINDER_FACES = ("bottom", "top", "lateral")
 #: Curved surfaces get at least this many elements per 2*pi radians of curvature
 #: (gmsh ``Mesh.MeshSizeFromCurvature``), whatever ``size`` is: keeps the
 #: faceting volume error at about 2 % on coarse meshes.
-CURVATURE_ELEMENTS = 16
 
 
 def _classify_face(z_center: float, length: float) -> str:
@@ -50,12 +49,8 @@ def build_cylinder_model(radius: float, length: float) -> None:
 
 
 def cylinder_options(size: float) -> dict[str, float]:
-    """gmsh options used to mesh the cylinder with target element size ``size``."""
-    return {
-        "Mesh.MeshSizeMax": size,
-        "Mesh.MeshSizeMin": 0.0,
-        "Mesh.MeshSizeFromCurvature": CURVATURE_ELEMENTS,
-    }
+    """gmsh options used for maximum element size ``size`` (refined on curved surfaces)."""
+    return curved_size_options(size)
 
 
 def cylinder(radius: float = 0.5, length: float = 2.0, size: float = 0.25) -> MeshData:

@@ -23,7 +23,7 @@ import time
 import gmsh
 import numpy as np
 
-from meshes._gmsh import gmsh_session
+from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, gmsh_session
 from meshes._validate import ParameterError, positive_float
 from meshes.data import MeshData, from_gmsh_model
 
@@ -50,7 +50,6 @@ SECTIONS = 13
 #: Curved surfaces get at least this many elements per 2*pi radians of curvature
 #: (gmsh ``Mesh.MeshSizeFromCurvature``), whatever ``size`` is: without it the
 #: thin tendons would be faceted with ~7 segments and lose ~8 % of their volume.
-CURVATURE_ELEMENTS = 16
 
 
 def belly_radius_at(s: np.ndarray | float, belly_radius: float, tendon_radius: float) -> np.ndarray:
@@ -120,12 +119,8 @@ def build_fusiform_model(
 
 
 def fusiform_options(size: float) -> dict[str, float]:
-    """gmsh options used to mesh the muscle with maximum element size ``size``."""
-    return {
-        "Mesh.MeshSizeMax": size,
-        "Mesh.MeshSizeMin": 0.0,
-        "Mesh.MeshSizeFromCurvature": CURVATURE_ELEMENTS,
-    }
+    """gmsh options used for maximum element size ``size`` (refined on curved surfaces)."""
+    return curved_size_options(size)
 
 
 def fusiform(

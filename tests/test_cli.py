@@ -9,61 +9,23 @@
 from __future__ import annotations
 
 import json
-import os
 import re
 import shutil
 import subprocess
 import sys
-import tomllib
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Any
 
 import meshio
 import numpy as np
 import pytest
-from conftest import EXAMPLES, ROOT, example, serial_only
+from conftest import EXAMPLES, ROOT, environment, example, serial_only, write_toml
 
 pytestmark = serial_only
 
 PROGRESS = re.compile(r"^step\s+(\d+)\s+load\s+([0-9.]+)\s+newton\s+(\d+)\s+\|R\|\s+(\S+)\s+(.*)$")
 STEP_KEYS = {"load_factor", "newton_iterations", "converged", "snes_reason", "residual_norm", "energy", "probes",
              "reactions"}
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
-    raise TypeError(f"cannot write {value!r} as TOML")
-
-
-def write_toml(raw: dict[str, Any], path: Path) -> Path:
-    """A configuration dict (tables of scalars, arrays and inline tables; arrays of tables) as a TOML file."""
-    lines: list[str] = []
-    for section, body in raw.items():
-        for table in body if isinstance(body, list) else [body]:
-            lines.append(f"[[{section}]]" if isinstance(body, list) else f"[{section}]")
-            lines += [f"{key} = {_toml_value(value)}" for key, value in table.items()]
-    path.write_text("\n".join(lines) + "\n")
-    assert tomllib.loads(path.read_text()) == raw
-    return path
-
-
-def environment() -> dict[str, str]:
-    """This environment for a child run: the project on PYTHONPATH, one thread, mpirun allowed as root."""
-    env = dict(os.environ)
-    env.update(PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
-               OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1",
-               OPENBLAS_NUM_THREADS="1")
-    return env
 
 
 def run_cli(config: Path, out: Path, ranks: int = 1) -> subprocess.CompletedProcess:

@@ -7,39 +7,12 @@ Cook's membrane (Taylor-Hood) is a non-homogeneous state, so the comparison mean
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
-from conftest import ROOT, example, run_raw, serial_only
-
-
-def write_toml(raw: dict, path: Path) -> None:
-    """A minimal TOML writer for the example dictionaries (tables, arrays of tables, scalars, arrays)."""
-
-    def value(v) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return json.dumps(v)
-        if isinstance(v, list):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
-        return repr(v)
-
-    lines = []
-    for section, content in raw.items():
-        blocks = content if isinstance(content, list) else [content]
-        for block in blocks:
-            lines.append(f"[[{section}]]" if isinstance(content, list) else f"[{section}]")
-            lines += [f"{k} = {value(v)}" for k, v in block.items()]
-            lines.append("")
-    path.write_text("\n".join(lines))
-    assert tomllib.loads(path.read_text()) == raw
+from conftest import ROOT, environment, example, run_raw, serial_only, write_toml
 
 
 @serial_only
@@ -51,8 +24,7 @@ def test_two_ranks_match_serial(tmp_path: Path) -> None:
     config = tmp_path / "cook.toml"
     write_toml(raw, config)
     serial = run_raw(raw, tmp_path / "serial")
-    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-           "PYTHONPATH": str(ROOT)}
+    env = environment()
     cmd = ["mpirun", "-n", "2", "--oversubscribe", sys.executable, "-m", "model", "run", str(config),
            "--out", str(tmp_path / "parallel")]
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
