@@ -6,10 +6,11 @@ from typing import Any
 
 from forms.isotropic import Corotated, MooneyRivlin, NeoHookean, StVenantKirchhoff
 from forms.law import Law, ParameterError
+from forms.shape_target import ShapeTarget, Volume, check_shape_targets
 
 #: Law classes by their name in energies.md.
 LAWS: dict[str, type[Law]] = {
-    cls.name: cls for cls in (StVenantKirchhoff, NeoHookean, MooneyRivlin, Corotated)
+    cls.name: cls for cls in (StVenantKirchhoff, NeoHookean, MooneyRivlin, Corotated, ShapeTarget, Volume)
 }
 
 
@@ -20,5 +21,8 @@ def make_law(name: str, **params: Any) -> Law:
     return LAWS[name].from_parameters(**params)  # type: ignore[attr-defined]
 
 
-__all__ = ["LAWS", "Law", "ParameterError", "make_law", "Corotated", "MooneyRivlin", "NeoHookean",
-           "StVenantKirchhoff"]
+#: Fields a law takes besides its scalar parameters (energies.md): S, the shape target.
+FIELDS: dict[str, tuple[str, ...]] = {"shape_target": ("S",), "volume": ("S",)}
+
+__all__ = ["FIELDS", "LAWS", "Law", "ParameterError", "make_law", "check_shape_targets", "Corotated", "MooneyRivlin",
+           "NeoHookean", "ShapeTarget", "StVenantKirchhoff", "Volume"]

@@ -60,10 +60,12 @@ def _combine(entities: np.ndarray, tags: np.ndarray, names: dict[str, int]
     for i, s in enumerate(sets):
         codes[i] = combos.setdefault(frozenset(s), len(combos) + 1)
     by_name = {n: tuple(sorted(c for s, c in combos.items() if t in s)) for n, t in names.items()}
-    # keep the original vertex order of the first occurrence of each entity
+    # entities in the order of their first occurrence, with its vertex order: without duplicates
+    # the output order is the input order (dolfinx's original_cell_index then indexes MeshData.cells)
     first = np.zeros(unique.shape[0], dtype=np.int64)
     first[inverse[::-1]] = np.arange(len(inverse))[::-1]
-    return entities[first], codes, by_name
+    order = np.argsort(first, kind="stable")
+    return entities[first[order]], codes[order], by_name
 
 
 def build_domain(comm: MPI.Comm, data: MeshData | None, root: int = 0) -> Domain:
