@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 import forms
 
 
@@ -50,6 +52,8 @@ class DiscretizationConfig:
 class MaterialConfig:
     region: str
     law: forms.Law
+    #: field name -> source: a 3x3 array (constant), an (n, 3, 3) array (per cell) or f(x, t) (procedural)
+    fields: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -228,12 +232,61 @@ def _discretization(raw: dict[str, Any]) -> DiscretizationConfig:
     return DiscretizationConfig(degree, quad, formulation)
 
 
-def _material(raw: dict[str, Any], key: str) -> MaterialConfig:
+def _target_source(raw: dict[str, Any], key: str, base: Path) -> Any:
+    """The shape-target source of a material: S (3x3), S_file (.npy, per cell) or S_function (FILE.py:NAME)."""
+    from model.targets import load_target_function
+
+    given = [k for k in ("S", "S_file", "S_function") if k in raw]
+    if len(given) > 1:
+        _fail(f"{key}.{given[1]}", f"give only one of S, S_file, S_function (also got {given[0]})")
+    if not given:
+        return None
+    name = given[0]
+    value = raw[name]
+    if name == "S":
+        if not (isinstance(value, list) and len(value) == 3 and all(isinstance(r, list) for r in value)):
+            _fail(f"{key}.S", "must be a 3x3 array of numbers, e.g. [[1, 0, 0], [0, 1, 0], [0, 0, 1]]")
+        rows = [_vector(r, f"{key}.S[{i}]", 3) for i, r in enumerate(value)]
+        try:
+            return forms.check_shape_targets(np.array(rows), "S")
+        except forms.ParameterError as err:
+            _fail(f"{key}.S", str(err).removeprefix("S: "))
+    path = Path(_string(value, f"{key}.{name}"))
+    if name == "S_function":
+        try:
+            return load_target_function(str(value), base)
+        except Exception as err:  # noqa: BLE001 - any import error is reported against the key
+            _fail(f"{key}.S_function", str(err).splitlines()[0] if str(err) else type(err).__name__)
+    if not path.is_absolute():
+        path = base / path
+    try:
+        array = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as err:
+        _fail(f"{key}.S_file", f"cannot read {path}: {str(err).splitlines()[0]}")
+    if array.ndim != 3 or array.shape[1:] != (3, 3):
+        _fail(f"{key}.S_file", f"{path} must hold an array of shape (num_cells, 3, 3), got {array.shape}")
+    try:
+        return forms.check_shape_targets(array, "S")
+    except forms.ParameterError as err:
+        _fail(f"{key}.S_file", str(err).removeprefix("S: "))
+
+
+def _material(raw: dict[str, Any], key: str, base: Path = Path(".")) -> MaterialConfig:
     region = _string(raw.get("region", "all"), f"{key}.region")
     if "law" not in raw:
         _fail(f"{key}.law", f"missing (choose from {', '.join(sorted(forms.LAWS))})")
     law_name = _string(raw["law"], f"{key}.law", tuple(sorted(forms.LAWS)))
-    params = {k: v for k, v in raw.items() if k not in ("region", "law")}
+    fields: dict[str, Any] = {}
+    field_keys = ("S", "S_file", "S_function")
+    if "S" in forms.FIELDS.get(law_name, ()):
+        source = _target_source(raw, key, base)
+        if source is not None:
+            fields["S"] = source
+    else:
+        for k in field_keys:
+            if k in raw:
+                _fail(f"{key}.{k}", f"only applies to laws with a shape target (shape_target, volume), not {law_name}")
+    params = {k: v for k, v in raw.items() if k not in ("region", "law", *field_keys)}
 
     def check_numbers() -> None:
         for k, v in params.items():
@@ -251,7 +304,7 @@ def _material(raw: dict[str, Any], key: str) -> MaterialConfig:
         check_numbers()
         raise
     check_numbers()
-    return MaterialConfig(region, law)
+    return MaterialConfig(region, law, fields)
 
 
 def _parameter_key(key: str, message: str, params: dict[str, Any]) -> str:
@@ -369,7 +422,8 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
         _fail("material", "missing: at least one [[material]]")
     mesh = _mesh(_table(raw["mesh"], "mesh"), base)
     disc = _discretization(_table(raw.get("discretization", {}), "discretization"))
-    materials = tuple(_material(m, f"material[{i}]") for i, m in enumerate(_tables(raw["material"], "material")))
+    materials = tuple(_material(m, f"material[{i}]", base)
+                      for i, m in enumerate(_tables(raw["material"], "material")))
     if not materials:
         _fail("material", "at least one [[material]] is needed")
     boundaries = tuple(_boundary(b, f"boundary[{i}]")

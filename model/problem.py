@@ -94,6 +94,7 @@ class ElasticityProblem:
         for region, law in self.materials:
             self._add_material(region, law)
         self.dirichlet: list[DirichletBoundary] = []
+        self.load_hooks: list[Callable[[float], None]] = []
         self._forms: tuple[fem.FormMetaClass, fem.FormMetaClass] | None = None
 
     # --- set-up ---------------------------------------------------------------------------------
@@ -168,6 +169,10 @@ class ElasticityProblem:
         self.external += self.load_factor * ufl.inner(t0, self.v) * self.boundary_measure(name)
         self._forms = None
 
+    def add_load_hook(self, hook: Callable[[float], None]) -> None:
+        """Call hook(lambda) whenever the load factor is set (e.g. to re-evaluate procedural targets)."""
+        self.load_hooks.append(hook)
+
     def add_body_force(self, region: str, force: Sequence[float] | ufl.core.expr.Expr) -> None:
         """Body force b (per unit reference volume) on ``region``, scaled by lambda."""
         b = ufl.as_vector(force) if not isinstance(force, ufl.core.expr.Expr) else force
@@ -194,8 +199,12 @@ class ElasticityProblem:
         return [bc for entry in self.dirichlet for bc in entry.bcs]
 
     def set_load_factor(self, value: float) -> None:
-        """lambda <- value: scales loads and Dirichlet values (no recompilation)."""
+        """lambda <- value: scales loads and Dirichlet values, runs the load hooks (no recompilation)."""
         self.load_factor.value = value
+        for hook in self.load_hooks:
+            hook(value)
+        if self.load_hooks:
+            self.invalidate_state()
         for entry in self.dirichlet:
             for g, ref, f in zip(entry.values, entry.reference, entry.of_load_factor):
                 if f is None:

@@ -8,17 +8,20 @@ raise ConfigError naming the key, before any solve starts.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
+import forms
 import meshes
 from model.config import ConfigError, MeshConfig, RunConfig
 from model.domain import Domain, build_domain, read_meshio
 from model.expressions import compile_expression, uses_load_factor
 from model.measurements import Probes
 from model.problem import ElasticityProblem
+from model.targets import TargetField
 
 
 def load_mesh_data(cfg: MeshConfig) -> meshes.MeshData:
@@ -75,6 +78,7 @@ class Setup:
     domain: Domain
     problem: ElasticityProblem
     probes: Probes
+    targets: list[TargetField]
 
 
 def _check_names(config: RunConfig, domain: Domain) -> None:
@@ -120,8 +124,23 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
         i = [p.name for p in config.probes].index(probes.missing[0])
         raise ConfigError(f"probe[{i}].point: {list(config.probes[i].point)} is outside the mesh")
     disc = config.discretization
-    problem = ElasticityProblem(domain, [(m.region, m.law) for m in config.materials], disc.degree,
-                                disc.quadrature_degree, disc.formulation)
+    materials, targets = [], []
+    for i, m in enumerate(config.materials):
+        law = m.law
+        if "S" in forms.FIELDS.get(law.name, ()):
+            source = m.fields.get("S")
+            key = "S_function" if callable(source) else "S_file" if np.ndim(source) == 3 else "S"
+            try:
+                target = TargetField(domain.mesh, domain.region_cells(m.region), source)
+            except (ValueError, forms.ParameterError) as err:
+                raise ConfigError(f"material[{i}].{key}: {err}") from None
+            law = dataclasses.replace(law, S=target.function)
+            targets.append(target)
+        materials.append((m.region, law))
+    problem = ElasticityProblem(domain, materials, disc.degree, disc.quadrature_degree, disc.formulation)
+    for target in targets:
+        if target.procedural:
+            problem.add_load_hook(target.update)
     for b in config.boundaries:
         if b.type == "displacement":
             if b.value:
@@ -135,4 +154,4 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
             problem.add_pressure(b.on, b.value[0])
     for f in config.body_forces:
         problem.add_body_force(f.region, f.value)
-    return Setup(domain, problem, probes)
+    return Setup(domain, problem, probes, targets)
