@@ -1,0 +1,83 @@
+"""The verify tool: emit against an independent SVD computation, check's exit codes, bad input."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import svd_reference
+from conftest import ROOT, environment, serial_only
+
+from model.verify import compare, deformation_samples, emit, field_samples, reference
+
+CASES = {
+    "shape_target": {"mu": 2.5, "kappa": 40.0},
+    "corotated": {"mu": 2.5, "lmbda": 40.0},
+}
+
+
+@pytest.mark.parametrize("inverted", [False, True])
+@pytest.mark.parametrize("material", sorted(CASES))
+def test_emit_matches_independent_svd(material: str, inverted: bool, shared_tmp) -> None:
+    params = CASES[material]
+    data = emit(material, params, samples=70, seed=3, out=shared_tmp / f"{material}.npz", inverted=inverted)
+    labels = [str(x) for x in data["labels"]]
+    for kind in ("identity", "rotation", "uniaxial", "isotropic", "large_stretch", "nearly_flat"):
+        assert any(label.endswith(kind) for label in labels), kind
+    if inverted:
+        assert np.sum(np.linalg.det(data["F"]) < 0) == 70 // 4
+    S = data["S"] if material == "shape_target" else np.broadcast_to(np.eye(3), data["F"].shape)
+    kappa = params.get("kappa", params.get("lmbda"))
+    expected = {"psi": [], "P": [], "A": []}
+    for F, Sn in zip(data["F"], S):
+        psi, P, A = svd_reference.shape_target(F, Sn, params["mu"], kappa)
+        expected["psi"].append(psi)
+        expected["P"].append(P)
+        expected["A"].append(A)
+    expected = {k: np.array(v) for k, v in expected.items()}
+    for row in compare(expected, {q: data[q] for q in ("psi", "P", "A")}, rtol=1e-8):
+        assert row.ok, f"{material} {row.quantity}: max rel error {row.max_rel_error:.2e} at {labels[row.worst_sample]}"
+
+
+def test_identity_is_stress_free_and_rotation_invariant() -> None:
+    rng = np.random.default_rng(0)
+    F, _ = deformation_samples(7, 1)
+    S = field_samples("shape_target", 7, 1)["S"]
+    Q = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    Q *= np.sign(np.linalg.det(Q))
+    base = reference("shape_target", {"mu": 1.0, "kappa": 5.0}, F, S=S)
+    rotated = reference("shape_target", {"mu": 1.0, "kappa": 5.0}, Q @ F, S=S)
+    np.testing.assert_allclose(rotated["psi"], base["psi"], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(rotated["P"], Q @ base["P"], rtol=1e-9, atol=1e-11)
+    at_target = reference("shape_target", {"mu": 1.0, "kappa": 5.0}, S, S=S)  # F = S: zero energy and stress
+    np.testing.assert_allclose(at_target["psi"], 0.0, atol=1e-12)
+    np.testing.assert_allclose(at_target["P"], 0.0, atol=1e-11)
+
+
+@serial_only
+def test_check_exit_codes(tmp_path) -> None:
+    ref = tmp_path / "ref.npz"
+    emit("shape_target", {"mu": 1.0}, samples=21, seed=5, out=ref)
+    cmd = [sys.executable, "-m", "model", "verify", "check"]
+    ok = subprocess.run([*cmd, str(ref)], capture_output=True, text=True, env=environment(), cwd=ROOT)
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    assert "psi" in ok.stdout and "A" in ok.stdout
+    data = dict(np.load(ref))
+    data["A"] = data["A"].copy()
+    data["A"][4, 0, 1, 2, 2] += 1e-5 * np.abs(data["A"][4]).max()
+    data.pop("psi")
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **data)
+    fail = subprocess.run([*cmd, str(bad)], capture_output=True, text=True, env=environment(), cwd=ROOT)
+    assert fail.returncode == 1, fail.stdout + fail.stderr
+    rows = {line.split()[0]: line for line in fail.stdout.splitlines()[1:]}
+    assert set(rows) == {"P", "A"} and "FAIL" in rows["A"] and rows["A"].split()[3] == "4"
+    missing = subprocess.run([*cmd, str(tmp_path / "nope.npz")], capture_output=True, text=True,
+                             env=environment(), cwd=ROOT)
+    assert missing.returncode == 2 and missing.stderr.startswith("error: ")
+    emit_cmd = [sys.executable, "-m", "model", "verify", "emit", "--material", "shape_target", "--param", "mu=-1",
+                "--samples", "3", "--seed", "0", "--out", str(tmp_path / "x.npz")]
+    bad_param = subprocess.run(emit_cmd, capture_output=True, text=True, env=environment(), cwd=ROOT)
+    assert bad_param.returncode == 2 and "mu" in bad_param.stderr and len(bad_param.stderr.splitlines()) == 1
