@@ -22,13 +22,40 @@ from __future__ import annotations
 import numpy as np
 import ufl
 
+_kernel = None
+
 
 def polar_rotation(M: np.ndarray) -> np.ndarray:
     """Rotation R* = argmin_{R in SO(3)} ||M - R||_F of a batch M of shape (..., 3, 3).
 
     R* = U diag(1, 1, sign det(U V^T)) V^T from the SVD M = U Sigma V^T (singular
-    values in descending order, so the flipped one is the smallest).
+    values in descending order, so the flipped one is the smallest). Matrices with
+    det M > 0 go through a compiled scaled Newton iteration (forms._polar_kernel; the
+    same R to rounding, ~10x faster than LAPACK's batched SVD); the others, and all of
+    them when no C compiler is available, through ``polar_rotation_svd``.
     """
+    global _kernel
+    if _kernel is None:
+        from forms import _polar_kernel
+
+        _kernel = _polar_kernel.load() or False
+    if not _kernel:
+        return polar_rotation_svd(M)
+    M = np.ascontiguousarray(M, dtype=np.float64)
+    flat = M.reshape(-1, 3, 3)
+    R = np.empty_like(flat)
+    flag = np.empty(len(flat), dtype=np.int8)
+    ffi, lib = _kernel.ffi, _kernel.lib
+    failures = lib.polar_batch(len(flat), ffi.from_buffer("double[]", flat), ffi.from_buffer("double[]", R),
+                               ffi.from_buffer("signed char[]", flag))
+    if failures:
+        bad = flag.astype(bool)
+        R[bad] = polar_rotation_svd(flat[bad])
+    return R.reshape(M.shape)
+
+
+def polar_rotation_svd(M: np.ndarray) -> np.ndarray:
+    """polar_rotation through numpy's batched SVD (the definition; any det M)."""
     U, _, Vt = np.linalg.svd(M)
     sign = np.sign(np.linalg.det(U @ Vt))
     sign[sign == 0] = 1.0

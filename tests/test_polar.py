@@ -40,3 +40,19 @@ def test_inverted_gets_rotation_not_reflection() -> None:
     trial = Rotation.random(2000, random_state=3).as_matrix()
     for Fi, bi in zip(F[:20], best[:20]):
         assert bi <= np.linalg.norm(Fi - trial, axis=(1, 2)).min() + 1e-12
+
+
+def test_compiled_kernel_equals_svd_definition() -> None:
+    from forms import _polar_kernel
+    from forms.polar import polar_rotation_svd
+
+    assert _polar_kernel.load() is not None, "the C kernel did not build"
+    rng = np.random.default_rng(4)
+    F = np.eye(3) + 0.4 * rng.standard_normal((5000, 3, 3))
+    F[:500] = rng.standard_normal((500, 3, 3))  # about half with det < 0: SVD path
+    U, s, Vt = np.linalg.svd(F[500:1000])
+    s[:, 2] = 10.0 ** rng.uniform(-6, -2, 500)  # nearly flat
+    F[500:1000] = U @ (s[:, :, None] * np.eye(3)) @ Vt
+    F[1000:1010] = np.eye(3)
+    F[1010:1020] = 1e-8 * np.eye(3)  # tiny scale
+    np.testing.assert_allclose(polar_rotation(F), polar_rotation_svd(F), atol=1e-12)
