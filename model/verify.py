@@ -120,14 +120,16 @@ def _from_singular_values(rng: np.random.Generator, sigma: np.ndarray) -> np.nda
     return _rotations(rng, len(sigma)) @ (sigma[:, :, None] * np.eye(3)) @ _rotations(rng, len(sigma))
 
 
-def deformation_samples(n: int, seed: int, inverted: bool = False) -> tuple[np.ndarray, list[str]]:
+def deformation_samples(n: int, seed: int, inverted: bool = False,
+                        targets: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
     """n deformation gradients covering the hard cases, and a label for each.
 
     identity; pure rotations; repeated singular values (uniaxial: (a, b, b); isotropic: (a, a, a));
     large stretches (singular values in [0.3, 3]); nearly flat elements (smallest singular value
     1e-4 to 1e-2); random F near I. With ``inverted``, a quarter of them get det F < 0 (F times a
-    reflection), chosen among samples whose two smallest singular values differ by more than 5%:
-    for det F < 0 the rotation variant of the polar decomposition has no derivative where they
+    reflection), chosen among samples where the two smallest singular values of the matrix whose
+    rotation the law uses (F D, or F D S with the shape targets ``targets``) differ by more than 5%:
+    for det < 0 the rotation variant of the polar decomposition has no derivative where they
     coincide (K = tr(Sigma) I - Sigma is singular, the nearest rotation is not unique).
     """
     if n < 1:
@@ -155,12 +157,14 @@ def deformation_samples(n: int, seed: int, inverted: bool = False) -> tuple[np.n
             G = np.eye(3) + 0.3 * rng.standard_normal((3, 3))
             F[i] = G if np.linalg.det(G) > 0 else G @ np.diag([1.0, 1.0, -1.0])
     if inverted:
-        sigma = np.linalg.svd(F, compute_uv=False)
+        reflection = np.diag([1.0, 1.0, -1.0])
+        M = F @ reflection if targets is None else F @ reflection @ targets
+        sigma = np.linalg.svd(M, compute_uv=False)
         distinct = np.flatnonzero(sigma[:, 1] - sigma[:, 2] > 0.05 * sigma[:, 1])
         if len(distinct) == 0:
             raise ValueError("--inverted needs more samples (none with distinct singular values)")
         flip = rng.permutation(distinct)[: max(1, n // 4)]
-        F[flip] = F[flip] @ np.diag([1.0, 1.0, -1.0])
+        F[flip] = F[flip] @ reflection
         for i in flip:
             labels[i] = f"inverted_{labels[i]}"
     return F, labels
@@ -184,8 +188,8 @@ def field_samples(material: str, n: int, seed: int) -> dict[str, np.ndarray]:
 def emit(material: str, params: dict[str, float], samples: int, seed: int, out: Path,
          inverted: bool = False) -> dict[str, np.ndarray]:
     """Write FILE.npz with F, psi, P, A, the law's fields, material and params_json (defaults included)."""
-    F, labels = deformation_samples(samples, seed, inverted)
     fields = field_samples(material, samples, seed)
+    F, labels = deformation_samples(samples, seed, inverted, fields.get("S"))
     evaluator = ReferenceEvaluator(material, params, samples)
     values = evaluator.evaluate(F, **fields)
     data = {"F": F, **values, **fields, "labels": np.array(labels), "material": np.array(material),

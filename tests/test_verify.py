@@ -81,3 +81,25 @@ def test_check_exit_codes(tmp_path) -> None:
                 "--samples", "3", "--seed", "0", "--out", str(tmp_path / "x.npz")]
     bad_param = subprocess.run(emit_cmd, capture_output=True, text=True, env=environment(), cwd=ROOT)
     assert bad_param.returncode == 2 and "mu" in bad_param.stderr and len(bad_param.stderr.splitlines()) == 1
+
+
+@pytest.mark.parametrize("material", sorted(CASES))
+def test_envelope_stress_is_the_derivative_of_the_energy(material: str) -> None:
+    """P = 2 mu (F - R* S) + ... is written by the envelope theorem, not derived from psi by UFL:
+    check it against central differences of the reference psi (independent of that argument)."""
+    params = CASES[material]
+    F, _ = deformation_samples(28, 9, inverted=True)
+    fields = field_samples(material, 28, 9)
+    if material == "shape_target":
+        F, _ = deformation_samples(28, 9, inverted=True, targets=fields["S"])
+    base = reference(material, params, F, **fields)
+    h = 1e-6
+    for k in range(3):
+        for l in range(3):
+            dF = np.zeros((3, 3))
+            dF[k, l] = h
+            plus = reference(material, params, F + dF, **fields)["psi"]
+            minus = reference(material, params, F - dF, **fields)["psi"]
+            fd = (plus - minus) / (2 * h)
+            scale = np.abs(base["P"]).max(axis=(1, 2)) + 1.0
+            assert np.all(np.abs(fd - base["P"][:, k, l]) < 1e-6 * scale), (k, l)

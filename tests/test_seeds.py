@@ -1,0 +1,101 @@
+"""``verify seeds``: the seed formulas as printed against the UFL reference (model/seeds.py).
+
+The findings are pinned: the rows that agree must keep agreeing and the printed formulas that
+disagree must keep disagreeing (by a clear margin, not rounding), so that a regression in either
+the UFL reference or a transcription fails here. Every ``-corrected`` row agrees.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import ROOT, environment, serial_only
+from mpi4py import MPI
+
+from model import seeds
+from model.verify import deformation_samples, field_samples
+
+AGREE = {
+    "klar-eq1", "klar-eq3", "klar-eq4-6", "klar-psd", "klar-eq1-inverted",
+    "thesis-eq4.11", "thesis-eqC.15",
+    "thesis-eq4.5-stvk", "thesis-eq4.5-neo_hookean", "thesis-eq4.5-corotated", "thesis-eq4.5-shape_target",
+}
+DISAGREE = {"klar-eq2", "klar-eq3-inverted", "klar-eq4-6-inverted", "thesis-eq4.3", "thesis-eq4.12", "thesis-eqC.16"}
+CORRECTED = {f"{id_}-corrected" for id_ in DISAGREE}
+KEYS = {"id", "source", "agrees", "max_rel_error", "diagnosis"}
+
+
+@pytest.fixture(scope="module")
+def rows() -> list[seeds.SeedRow]:
+    return seeds.seed_rows()
+
+
+def by_id(rows: list[seeds.SeedRow]) -> dict[str, seeds.SeedRow]:
+    table = {r.id: r for r in rows}
+    assert len(table) == len(rows), "duplicate ids"
+    return table
+
+
+def test_table_has_exactly_the_pinned_rows(rows) -> None:
+    assert set(by_id(rows)) == AGREE | DISAGREE | CORRECTED
+
+
+@pytest.mark.parametrize("id_", sorted(AGREE | CORRECTED))
+def test_row_agrees(rows, id_: str) -> None:
+    row = by_id(rows)[id_]
+    assert row.agrees and row.max_rel_error <= seeds.RTOL, row
+
+
+@pytest.mark.parametrize("id_", sorted(DISAGREE))
+def test_printed_formula_disagrees(rows, id_: str) -> None:
+    row = by_id(rows)[id_]
+    assert not row.agrees and row.max_rel_error > 1e-2, row
+    assert row.diagnosis and row.source.split()[0] in {seeds.KLAR, seeds.THESIS}
+
+
+def test_klar_eq5_reading_of_the_levi_civita_contractions() -> None:
+    """dR* of eq. 5 (as read in model/seeds.py) is the derivative of R* = U V^T: central differences."""
+    F, _ = deformation_samples(21, 5)
+    S = field_samples("shape_target", 21, 5)["S"]
+    dF = np.random.default_rng(3).standard_normal(F.shape)
+    h = 1e-6
+    fd = (seeds.klar_rotation(F + h * dF, S) - seeds.klar_rotation(F - h * dF, S)) / (2 * h)
+    exact = seeds.klar_eq5_rotation_differential(F, S, dF)
+    np.testing.assert_allclose(exact, fd, atol=1e-7 * np.abs(exact).max())
+
+
+def test_irving_Bm_is_minus_volume_times_shape_gradients() -> None:
+    """B_m (Irving's area-weighted normals) = -V D_m^-T: eq. 4.5's G = P B_m is minus the element gradient."""
+    X = seeds.TET
+    Dm = (X[1:] - X[0]).T
+    np.testing.assert_allclose(seeds.irving_Bm(X), -abs(np.linalg.det(Dm)) / 6.0 * np.linalg.inv(Dm).T, atol=1e-14)
+
+
+def test_json_has_the_contract_keys(rows, shared_tmp: Path) -> None:
+    path = shared_tmp / "seeds.json"
+    assert seeds.run_seeds(path, rows=rows) == 0  # rank 0 writes, then a barrier
+    data = json.loads(path.read_text())
+    assert [d["id"] for d in data] == [r.id for r in rows]
+    for d in data:
+        assert set(d) == KEYS
+        assert isinstance(d["agrees"], bool) and isinstance(d["max_rel_error"], float)
+        assert isinstance(d["source"], str) and isinstance(d["diagnosis"], str) and d["diagnosis"]
+    MPI.COMM_WORLD.barrier()  # rank 0 may remove shared_tmp only after every rank has read
+
+
+@serial_only
+def test_cli_verify_seeds(tmp_path: Path) -> None:
+    out = tmp_path / "seeds.json"
+    proc = subprocess.run([sys.executable, "-m", "model", "verify", "seeds", "--json", str(out)], cwd=ROOT,
+                          env=environment(), capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    assert {d["id"] for d in data} == AGREE | DISAGREE | CORRECTED
+    assert all(set(d) == KEYS for d in data)
+    for d in data:
+        assert d["id"] in proc.stdout
