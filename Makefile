@@ -41,7 +41,7 @@ test-mpi: setup
 test: test-serial test-mpi
 
 lint: setup
-	$(PY) -m ruff check forms model meshes tests benchmarks
+	$(PY) -m ruff check forms model meshes tests benchmarks notebooks examples
 
 benchmark: setup
 	$(PY) benchmarks/assembly.py

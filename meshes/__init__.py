@@ -13,6 +13,7 @@ box        body                                              xmin xmax ymin ymax
 cylinder   body                                              bottom top lateral
 cook       body                                              left right bottom top front back
 fusiform   belly tendon_origin tendon_insertion              origin insertion surface
+trunk      trunk                                             base top bark
 ========== ================================================ =======================
 """
 
@@ -28,6 +29,7 @@ from meshes.cook import cook
 from meshes.cylinder import cylinder
 from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
 from meshes.fusiform import fusiform
+from meshes.trunk import trunk
 
 __all__ = [
     "GENERATORS",
@@ -41,6 +43,7 @@ __all__ = [
     "generate",
     "generator_parameters",
     "read_msh",
+    "trunk",
     "write_msh",
 ]
 
@@ -50,6 +53,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "cylinder": cylinder,
     "cook": cook,
     "fusiform": fusiform,
+    "trunk": trunk,
 }
 
 

@@ -15,6 +15,7 @@ Every value is checked (forms.check_shape_targets) when it is set.
 from __future__ import annotations
 
 import importlib.util
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -42,6 +43,7 @@ def load_target_function(spec: str, base: Path) -> TargetFunction:
     module_spec = importlib.util.spec_from_file_location(f"_targets_{path.stem}", path)
     assert module_spec is not None and module_spec.loader is not None
     module = importlib.util.module_from_spec(module_spec)
+    sys.modules[module_spec.name] = module  # dataclasses in the file look their module up here
     module_spec.loader.exec_module(module)
     function = getattr(module, name, None)
     if not callable(function):

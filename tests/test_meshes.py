@@ -111,7 +111,7 @@ def muscle() -> MeshData:
 
 
 def test_registry_names() -> None:
-    assert set(GENERATORS) == {"box", "cylinder", "cook", "fusiform"}
+    assert set(GENERATORS) == {"box", "cylinder", "cook", "fusiform", "trunk"}
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
