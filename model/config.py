@@ -93,6 +93,18 @@ class OutputConfig:
 
 
 @dataclass(frozen=True)
+class SolverConfig:
+    """[solver]: the nonlinear method, Newton's tangent, PETSc options, Projective Dynamics' stopping rule."""
+
+    method: str = "newton"
+    tangent: str = "exact"
+    petsc_options: dict[str, str | int | float | bool] = field(default_factory=dict)
+    pd_max_iterations: int = 1000
+    pd_rtol: float = 1e-8
+    pd_atol: float = 1e-12
+
+
+@dataclass(frozen=True)
 class RunConfig:
     mesh: MeshConfig
     discretization: DiscretizationConfig
@@ -103,6 +115,7 @@ class RunConfig:
     petsc_options: dict[str, str | int | float | bool]
     probes: tuple[ProbeConfig, ...]
     output: OutputConfig
+    solver: SolverConfig = field(default_factory=SolverConfig)
 
 
 # --- small checkers: each raises ConfigError naming the key ---------------------------------------
@@ -382,15 +395,53 @@ def _loading(raw: dict[str, Any]) -> LoadingConfig:
     return LoadingConfig(steps, cut, growth)
 
 
-def _solver(raw: dict[str, Any]) -> dict[str, str | int | float | bool]:
-    _known(raw, {"petsc_options"}, "solver")
+SOLVER_METHODS = ("newton", "projective_dynamics")
+TANGENTS = ("exact", "projected")
+_PD_KEYS = ("pd_max_iterations", "pd_rtol", "pd_atol")
+
+
+def _solver(raw: dict[str, Any]) -> SolverConfig:
+    _known(raw, {"petsc_options", "method", "tangent", *_PD_KEYS}, "solver")
     opts = _table(raw.get("petsc_options", {}), "solver.petsc_options")
     for k, v in opts.items():
         if not isinstance(v, (str, int, float, bool)):
             _fail(f"solver.petsc_options.{k}", f"must be a string, number or boolean, got {v!r}")
         if k.startswith("-"):
             _fail(f"solver.petsc_options.{k}", "write the option without its leading '-'")
-    return dict(opts)
+    method = _string(raw.get("method", "newton"), "solver.method", SOLVER_METHODS)
+    tangent = _string(raw.get("tangent", "exact"), "solver.tangent", TANGENTS)
+    if method != "newton" and tangent != "exact":
+        _fail("solver.tangent", f"{tangent!r} only applies to method = \"newton\", not {method!r}")
+    if method != "projective_dynamics":
+        for k in _PD_KEYS:
+            if k in raw:
+                _fail(f"solver.{k}", f"only applies to method = \"projective_dynamics\", not {method!r}")
+    defaults = SolverConfig()
+    max_iterations = _integer(raw.get("pd_max_iterations", defaults.pd_max_iterations), "solver.pd_max_iterations", 1)
+    rtol = _number(raw.get("pd_rtol", defaults.pd_rtol), "solver.pd_rtol")
+    if not 0.0 < rtol < 1.0:
+        _fail("solver.pd_rtol", f"{rtol} is out of range, must be in (0, 1)")
+    atol = _number(raw.get("pd_atol", defaults.pd_atol), "solver.pd_atol")
+    if atol < 0.0:
+        _fail("solver.pd_atol", f"{atol} is out of range, must be >= 0")
+    return SolverConfig(method, tangent, dict(opts), max_iterations, rtol, atol)
+
+
+def _check_solver(solver: SolverConfig, materials: tuple[MaterialConfig, ...],
+                  disc: DiscretizationConfig) -> None:
+    """What [solver] asks for must suit the formulation and the materials."""
+    if solver.tangent == "projected" and disc.formulation != "displacement":
+        _fail("solver.tangent", f"\"projected\" needs discretization.formulation = \"displacement\", "
+              f"not {disc.formulation!r}")
+    if solver.method == "projective_dynamics":
+        if disc.formulation != "displacement":
+            _fail("solver.method", f"\"projective_dynamics\" needs discretization.formulation = "
+                  f"\"displacement\", not {disc.formulation!r}")
+        for i, m in enumerate(materials):
+            if m.law.name != "shape_target" or m.law.bulk_penalty != 0:
+                what = m.law.name if m.law.name != "shape_target" else f"shape_target with kappa = {m.law.bulk_penalty}"
+                _fail("solver.method", f"\"projective_dynamics\" needs every material to be shape_target with "
+                      f"kappa = 0 (material[{i}] is {what})")
 
 
 def _probe(raw: dict[str, Any], key: str) -> ProbeConfig:
@@ -435,16 +486,20 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
     for i, n in enumerate(names):
         if n in names[:i]:
             _fail(f"probe[{i}].name", f"{n!r} is used twice")
+    loading = _loading(_table(raw.get("loading", {}), "loading"))
+    solver = _solver(_table(raw.get("solver", {}), "solver"))
+    _check_solver(solver, materials, disc)
     return RunConfig(
         mesh=mesh,
         discretization=disc,
         materials=materials,
         boundaries=boundaries,
         body_forces=body,
-        loading=_loading(_table(raw.get("loading", {}), "loading")),
-        petsc_options=_solver(_table(raw.get("solver", {}), "solver")),
+        loading=loading,
+        petsc_options=solver.petsc_options,
         probes=probes,
         output=_output(_table(raw.get("output", {}), "output")),
+        solver=solver,
     )
 
 

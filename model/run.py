@@ -18,6 +18,7 @@ from model.config import RunConfig
 from model.loadstepping import StepRecord, step_loads
 from model.measurements import reactions
 from model.output import ResultWriter, write_json_atomic
+from model.problem import ElasticityProblem
 from model.setup import build
 from model.solver import NewtonSolver
 
@@ -26,6 +27,18 @@ log = logging.getLogger(__name__)
 
 class SolveFailed(RuntimeError):
     """The load stepping gave up; the message holds the last SNES reason."""
+
+
+def make_solver(problem: ElasticityProblem, config: RunConfig) -> Any:
+    """The solver [solver] asks for: NewtonSolver (exact or projected tangent) or ProjectiveDynamicsSolver."""
+    solver = config.solver
+    if solver.method == "projective_dynamics":
+        from model.projective_dynamics import ProjectiveDynamicsSolver
+
+        options = {**config.petsc_options, "pd_max_iterations": solver.pd_max_iterations,
+                   "pd_rtol": solver.pd_rtol, "pd_atol": solver.pd_atol}
+        return ProjectiveDynamicsSolver(problem, options)
+    return NewtonSolver(problem, config.petsc_options, tangent=solver.tangent)
 
 
 def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
@@ -38,7 +51,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
     problem = setup.problem
-    solver = NewtonSolver(problem, config.petsc_options)
+    solver = make_solver(problem, config)
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png)
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
@@ -46,6 +59,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "dofs": imap.size_global * problem.space.dofmap.index_map_bs,
         "cells": msh.topology.index_map(msh.topology.dim).size_global,
         "ranks": comm.size,
+        "solver": {"method": config.solver.method, "tangent": config.solver.tangent},
         "wall_time_s": 0.0,
         "status": "running",
         "steps": [],

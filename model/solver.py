@@ -3,6 +3,13 @@
 SNES owns its own vector x. Both callbacks copy x into the solution Function
 (and refresh quadrature-point state such as polar rotations) before assembling,
 so the Jacobian is always evaluated at the iterate SNES asks for.
+
+``tangent = "projected"`` replaces the consistent tangent by its per-quadrature-point
+positive semidefinite projection (model.tangent, the "modified Newton" of Klar et al. 2020):
+the residual is unchanged, the Newton matrices are positive semidefinite, so CG with
+algebraic multigrid (``ksp_type = "cg"``, ``pc_type = "gamg"``) can solve them. For the
+displacement formulation the matrix carries the rigid-body modes as its near null space
+(used by GAMG, ignored by LU).
 """
 
 from __future__ import annotations
@@ -11,6 +18,7 @@ import itertools
 import logging
 from dataclasses import dataclass
 
+from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
 from petsc4py import PETSc
 
@@ -32,6 +40,9 @@ DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "pc_factor_mat_solver_type": "mumps",
 }
 
+#: Jacobians NewtonSolver can use: the consistent one, or its PSD projection (model.tangent).
+TANGENTS = ("exact", "projected")
+
 _counter = itertools.count()
 
 #: SNES converged-reason codes by value (PETSc 3.18), for messages.
@@ -48,16 +59,56 @@ class SolveResult:
     residual_norm: float
 
 
+def rigid_body_modes(problem: ElasticityProblem) -> PETSc.NullSpace:
+    """The six rigid-body modes of a displacement space, orthonormalised (a near null space for GAMG)."""
+    if problem.formulation != "displacement":
+        raise ValueError("rigid-body modes: only for the displacement formulation")
+    space = problem.space
+    imap = space.dofmap.index_map
+    bs = space.dofmap.index_map_bs
+    owned = imap.size_local
+    x = space.tabulate_dof_coordinates()[:owned]
+    vectors = [la.create_petsc_vector(imap, bs) for _ in range(6)]
+    for i in range(3):  # translations
+        with vectors[i].localForm() as local:
+            local.array[i:owned * bs:bs] = 1.0
+    for k, (a, b) in enumerate(((0, 1), (1, 2), (2, 0))):  # rotations about the axes: u_a = -x_b, u_b = x_a
+        with vectors[3 + k].localForm() as local:
+            local.array[a:owned * bs:bs] = -x[:, b]
+            local.array[b:owned * bs:bs] = x[:, a]
+    la.orthonormalize(vectors)
+    return PETSc.NullSpace().create(vectors=vectors, comm=space.mesh.comm)
+
+
 class NewtonSolver:
-    """SNES on the residual and Jacobian forms of a problem, with a unique options prefix."""
+    """SNES on the residual and Jacobian forms of a problem, with a unique options prefix.
+
+    ``tangent``: "exact" (the consistent Jacobian, ufl.derivative of the residual) or
+    "projected" (model.tangent.ProjectedTangent; displacement formulation only).
+    """
 
     def __init__(self, problem: ElasticityProblem, options: dict[str, str | int | float | bool] | None = None,
-                 prefix: str | None = None) -> None:
+                 prefix: str | None = None, tangent: str = "exact") -> None:
+        if tangent not in TANGENTS:
+            raise ValueError(f"solver.tangent: {tangent!r} is not one of {', '.join(TANGENTS)}")
         self.problem = problem
         comm = problem.domain.mesh.comm
-        self.residual_form, self.jacobian_form = problem.forms
+        self.tangent = tangent
+        self.projected = None
+        if tangent == "projected":
+            from model.tangent import ProjectedTangent
+
+            self.projected = ProjectedTangent(problem)
+            self.residual_form = fem.form(problem.residual_form)  # the exact Jacobian is never compiled
+            self.jacobian_form = self.projected.form
+        else:
+            self.residual_form, self.jacobian_form = problem.forms
         self.b = fem_petsc.create_vector(self.residual_form)
         self.A = fem_petsc.create_matrix(self.jacobian_form)
+        self.near_null_space = None
+        if problem.formulation == "displacement":
+            self.near_null_space = rigid_body_modes(problem)
+            self.A.setNearNullSpace(self.near_null_space)
         self.x = problem.solution.vector.copy()
         self.snes = PETSc.SNES().create(comm)
         self.snes.setFunction(self._residual, self.b)
@@ -79,6 +130,9 @@ class NewtonSolver:
         self.problem.update_state()
 
     def _residual(self, snes: PETSc.SNES, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        # With the projected tangent, the lifting of Dirichlet increments uses the projected matrix
+        # of the last Jacobian evaluation (of the initial state at the first residual of a solve):
+        # the same linearisation as the Newton matrix. It vanishes once x satisfies the conditions.
         self._copy_in(x)
         with b.localForm() as b_local:
             b_local.set(0.0)
@@ -90,6 +144,8 @@ class NewtonSolver:
 
     def _jacobian(self, snes: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
         self._copy_in(x)
+        if self.projected is not None:
+            self.projected.update()
         A.zeroEntries()
         fem_petsc.assemble_matrix(A, self.jacobian_form, bcs=self.problem.bcs)
         A.assemble()
@@ -97,6 +153,10 @@ class NewtonSolver:
     def solve(self) -> SolveResult:
         """Newton from the current solution; the solution holds the last iterate afterwards."""
         self.problem.solution.vector.copy(self.x)
+        if self.projected is not None:  # the tangent of the initial state (targets may have changed)
+            self._copy_in(self.x)
+            self.projected.invalidate()
+            self.projected.update()
         self.snes.solve(None, self.x)
         self._copy_in(self.x)
         reason = self.snes.getConvergedReason()
@@ -124,3 +184,5 @@ class NewtonSolver:
         self.A.destroy()
         self.b.destroy()
         self.x.destroy()
+        if self.near_null_space is not None:
+            self.near_null_space.destroy()
