@@ -61,6 +61,9 @@ CASES = [
     ("(b) Newton, projected tangent", "newton", "projected", "CG + GAMG", CG_GAMG),
     ("Newton, exact tangent (contrast)", "newton", "exact", "CG + GAMG", CG_GAMG),
     ("(c) Projective Dynamics", "projective_dynamics", "exact", "MUMPS LU", LU),
+    ("(a) Newton, exact tangent, full steps", "newton", "exact", "MUMPS LU", {**LU, "snes_linesearch_type": "basic"}),
+    ("(b) Newton, projected tangent, full steps", "newton", "projected", "MUMPS LU",
+     {**LU, "snes_linesearch_type": "basic"}),
 ]
 
 
