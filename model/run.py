@@ -100,6 +100,9 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     save()
     ok = step_loads(solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth, on_step)
     summary["status"] = "completed" if ok else "failed"
+    unused = getattr(solver, "unused_options", [])
+    if unused:
+        summary["unused_petsc_options"] = unused
     png = writer.write_png(f"load factor {problem.load_factor.value:.3g}")
     if png is not None:
         summary["png"] = png.name

@@ -14,6 +14,7 @@ displacement formulation the matrix carries the rigid-body modes as its near nul
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import logging
 from dataclasses import dataclass
@@ -47,6 +48,46 @@ _counter = itertools.count()
 
 #: SNES converged-reason codes by value (PETSc 3.18), for messages.
 REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+
+
+def _petsc_library() -> ctypes.CDLL | None:
+    """The PETSc shared library this process has loaded (for PetscOptionsUsed, which petsc4py lacks)."""
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = {line.split()[-1] for line in maps if "/libpetsc" in line and ".so" in line.split()[-1]}
+    except OSError:
+        return None
+    for path in sorted(paths):
+        try:
+            lib = ctypes.CDLL(path)
+            lib.PetscOptionsUsed  # noqa: B018 - raises AttributeError if absent
+            return lib
+        except (OSError, AttributeError):
+            continue
+    return None
+
+
+_PETSC = _petsc_library()
+#: option families PETSc reads only during the first solve, or at its end (viewers, reasons)
+_READ_LATER = ("mat_", "mg_", "fieldsplit_", "sub_", "pc_gamg_", "pc_mg_", "pc_factor_")
+_READ_LATER_WORDS = ("view", "converged_reason", "monitor")
+
+
+def read_later(key: str) -> bool:
+    """True for options PETSc may legitimately read only in the first solve."""
+    return key.startswith(_READ_LATER) or any(word in key for word in _READ_LATER_WORDS)
+
+
+def unused_options(prefix: str, keys: list[str]) -> list[str]:
+    """The keys (without prefix) PETSc has not read so far; empty when the query is unavailable."""
+    if _PETSC is None:
+        return []
+    out = []
+    for key in keys:
+        used = ctypes.c_int(0)
+        if _PETSC.PetscOptionsUsed(None, f"{prefix}{key}".encode(), ctypes.byref(used)) == 0 and not used.value:
+            out.append(key)
+    return out
 
 
 @dataclass(frozen=True)
@@ -115,13 +156,23 @@ class NewtonSolver:
         self.snes.setJacobian(self._jacobian, self.A)
         self.prefix = prefix or f"elasticity{next(_counter)}_"
         self.options = {**DEFAULT_OPTIONS, **(options or {})}
+        self.user_options = list(options or {})
         db = PETSc.Options()
         for key, value in self.options.items():
             db[f"{self.prefix}{key}"] = value
         self.snes.setOptionsPrefix(self.prefix)
         self.snes.setFromOptions()
-        for key in self.options:
-            db.delValue(f"{self.prefix}{key}")
+        # the options stay in the database until destroy(): PETSc reads some of them only when the
+        # preconditioner is set up in the first solve (MUMPS's mat_mumps_*, multigrid levels, ...)
+        unknown = [k for k in unused_options(self.prefix, self.user_options) if not read_later(k)]
+        if unknown:
+            self._delete_options()
+            from model.config import ConfigError
+
+            raise ConfigError(f"solver.petsc_options.{unknown[0]}: PETSc does not use this option with the "
+                              f"solver it configures (misspelt, or for another solver type)")
+        self.unused_options: list[str] = []
+        self._checked = False
 
     def _copy_in(self, x: PETSc.Vec) -> None:
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
@@ -158,6 +209,11 @@ class NewtonSolver:
             self.projected.invalidate()
             self.projected.update()
         self.snes.solve(None, self.x)
+        if not self._checked:
+            self._checked = True
+            self.unused_options = unused_options(self.prefix, self.user_options)
+            for key in self.unused_options:
+                log.warning("PETSc did not use the option %s (solver.petsc_options)", key)
         self._copy_in(self.x)
         reason = self.snes.getConvergedReason()
         return SolveResult(
@@ -179,7 +235,13 @@ class NewtonSolver:
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return b
 
+    def _delete_options(self) -> None:
+        db = PETSc.Options()
+        for key in self.options:
+            db.delValue(f"{self.prefix}{key}")
+
     def destroy(self) -> None:
+        self._delete_options()
         self.snes.destroy()
         self.A.destroy()
         self.b.destroy()
