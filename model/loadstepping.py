@@ -2,8 +2,9 @@
 
 The load factor goes from 0 to 1 in ``steps`` equal increments d = 1/steps. When
 SNES fails, the solution is restored to the last converged state and the
-increment is halved (at most ``max_cutbacks`` times in a row); after a converged
-step the increment grows by ``growth`` again, never beyond d.
+increment is halved; after a converged step it grows by ``growth`` again, never beyond d.
+The run gives up after ``max_cutbacks`` failures in a row, or when the increment falls below
+d / 2^max_cutbacks (so that alternating failures and successes cannot crawl on forever).
 """
 
 from __future__ import annotations
@@ -49,11 +50,11 @@ def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: 
         problem.solution.x.array[:] = saved
         problem.set_load_factor(current)
         cutbacks += 1
-        if cutbacks > max_cutbacks:
-            log.error("load step to %.6g failed %d times in a row (last SNES reason %s); giving up at %.6g",
-                      target, cutbacks, result.reason_name, current)
-            return False
         increment *= 0.5
+        if cutbacks > max_cutbacks or increment < nominal * 0.5**max_cutbacks * (1 - 1e-12):
+            log.error("load step to %.6g failed (%d times in a row, increment %.3g; last SNES reason %s); "
+                      "giving up at %.6g", target, cutbacks, 2 * increment, result.reason_name, current)
+            return False
         log.warning("SNES failed at load factor %.6g (%s); cutting the increment back to %.4g",
                     target, result.reason_name, increment)
     return True

@@ -25,3 +25,23 @@ def test_cut_back_and_regrow(shared_tmp) -> None:
     reference = run_raw(raw, shared_tmp / "small_steps")
     np.testing.assert_allclose(steps[-1]["probes"]["corner"], reference["steps"][-1]["probes"]["corner"],
                                rtol=1e-9)
+
+
+def test_gives_up_instead_of_crawling(shared_tmp) -> None:
+    """A solver that only manages tiny increments must stop once the increment falls below
+    nominal / 2^max_cutbacks, even when failures alternate with successes."""
+    from model.config import parse
+    from model.loadstepping import step_loads
+    from model.setup import build
+    from model.solver import NewtonSolver
+
+    raw = example("uniaxial")
+    raw["boundary"][3]["value"] = [3.0e4, 0.0, 0.0]
+    setup = build(parse(raw))
+    solver = NewtonSolver(setup.problem, {"snes_max_it": 4, "snes_linesearch_type": "basic"})
+    attempts = []
+    ok = step_loads(solver, steps=1, max_cutbacks=2, growth=2.0, on_step=attempts.append)
+    assert not ok
+    increments = [a.load_factor for a in attempts]
+    assert len(increments) < 40, increments
+    solver.destroy()
