@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 import ufl
 
 from forms.kinematics import green_lagrange, isochoric_invariants, lame_parameters, right_cauchy_green
-from forms.law import Expr, Law, ParameterError, require, require_finite
+from forms.law import Expr, Law, ParameterError, check_keys, require, require_finite
 
 
 def _lame_from(law: str, params: dict[str, Any]) -> dict[str, float]:
@@ -62,9 +62,7 @@ class _LameLaw(Law):
     @classmethod
     def from_parameters(cls, **params: Any) -> _LameLaw:
         """Build from (E, nu) or (mu, lmbda); any other key is an error naming it."""
-        unknown = set(params) - {"E", "nu", "mu", "lmbda"}
-        if unknown:
-            raise ParameterError(f"{cls.name}: unknown parameter {sorted(unknown)[0]!r} (allowed: E, nu, mu, lmbda)")
+        check_keys(cls.name, params, ("E", "nu", "mu", "lmbda"))
         return cls(**_lame_from(cls.name, params))
 
     @property
@@ -143,12 +141,7 @@ class MooneyRivlin(Law):
 
     @classmethod
     def from_parameters(cls, **params: Any) -> MooneyRivlin:
-        unknown = set(params) - {"c1", "c2", "K"}
-        if unknown:
-            raise ParameterError(f"{cls.name}: unknown parameter {sorted(unknown)[0]!r} (allowed: c1, c2, K)")
-        for key in ("c1", "c2", "K"):
-            if key not in params:
-                raise ParameterError(f"{cls.name}: {key} is missing")
+        check_keys(cls.name, params, ("c1", "c2", "K"), required=("c1", "c2", "K"))
         return cls(**params)
 
     @property

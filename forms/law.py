@@ -34,6 +34,16 @@ def require(condition: bool, law: str, key: str, value: Any, allowed: str) -> No
         raise ParameterError(f"{law}: {key} = {value!r}, must be {allowed}")
 
 
+def check_keys(law: str, params: dict[str, Any], allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> None:
+    """ParameterError for the first unknown key ("unknown parameter 'x' (allowed: ...)") or missing one."""
+    unknown = set(params) - set(allowed)
+    if unknown:
+        raise ParameterError(f"{law}: unknown parameter {sorted(unknown)[0]!r} (allowed: {', '.join(allowed)})")
+    for key in required:
+        if key not in params:
+            raise ParameterError(f"{law}: {key} is missing")
+
+
 def require_finite(law: str, **values: float) -> None:
     """Every value is a real finite number."""
     for key, value in values.items():

@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import numpy as np
 import ufl
 
-from forms.law import Expr, Law, ParameterError, require, require_finite
+from forms.law import Expr, Law, ParameterError, check_keys, require, require_finite
 
 
 def check_shape_targets(S: np.ndarray, where: str = "S", tol: float = 1e-10) -> np.ndarray:
@@ -68,11 +68,7 @@ class ShapeTarget(Law):
 
     @classmethod
     def from_parameters(cls, S: Any = None, **params: Any) -> ShapeTarget:
-        unknown = set(params) - {"mu", "kappa"}
-        if unknown:
-            raise ParameterError(f"{cls.name}: unknown parameter {sorted(unknown)[0]!r} (allowed: mu, kappa, S)")
-        if "mu" not in params:
-            raise ParameterError(f"{cls.name}: mu is missing")
+        check_keys(cls.name, params, ("mu", "kappa", "S"), required=("mu",))
         return cls(S=S, **params)
 
     @property
@@ -119,11 +115,7 @@ class Volume(Law):
 
     @classmethod
     def from_parameters(cls, S: Any = None, **params: Any) -> Volume:
-        unknown = set(params) - {"kappa"}
-        if unknown:
-            raise ParameterError(f"{cls.name}: unknown parameter {sorted(unknown)[0]!r} (allowed: kappa, S)")
-        if "kappa" not in params:
-            raise ParameterError(f"{cls.name}: kappa is missing")
+        check_keys(cls.name, params, ("kappa", "S"), required=("kappa",))
         return cls(S=S, **params)
 
     @property
