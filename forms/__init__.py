@@ -6,11 +6,13 @@ from typing import Any
 
 from forms.isotropic import Corotated, MooneyRivlin, NeoHookean, StVenantKirchhoff
 from forms.law import Law, ParameterError
+from forms.muscle import Muscle, Tendon
 from forms.shape_target import ShapeTarget, Volume, check_shape_targets
 
 #: Law classes by their name in energies.md.
 LAWS: dict[str, type[Law]] = {
-    cls.name: cls for cls in (StVenantKirchhoff, NeoHookean, MooneyRivlin, Corotated, ShapeTarget, Volume)
+    cls.name: cls
+    for cls in (StVenantKirchhoff, NeoHookean, MooneyRivlin, Corotated, ShapeTarget, Volume, Muscle, Tendon)
 }
 
 
@@ -22,7 +24,8 @@ def make_law(name: str, **params: Any) -> Law:
 
 
 #: Fields a law takes besides its scalar parameters (energies.md): S, the shape target.
-FIELDS: dict[str, tuple[str, ...]] = {"shape_target": ("S",), "volume": ("S",)}
+FIELDS: dict[str, tuple[str, ...]] = {"shape_target": ("S",), "volume": ("S",), "muscle": ("a0", "alpha"),
+                                      "tendon": ("a0",)}
 
 __all__ = ["FIELDS", "LAWS", "Law", "ParameterError", "make_law", "check_shape_targets", "Corotated", "MooneyRivlin",
-           "NeoHookean", "ShapeTarget", "StVenantKirchhoff", "Volume"]
+           "Muscle", "NeoHookean", "ShapeTarget", "StVenantKirchhoff", "Tendon", "Volume"]

@@ -289,6 +289,9 @@ def _material(raw: dict[str, Any], key: str, base: Path = Path(".")) -> Material
     if "law" not in raw:
         _fail(f"{key}.law", f"missing (choose from {', '.join(sorted(forms.LAWS))})")
     law_name = _string(raw["law"], f"{key}.law", tuple(sorted(forms.LAWS)))
+    if law_name in ("muscle", "tendon"):
+        _fail(f"{key}.law", f"{law_name} needs fibre directions and activations, which configuration files "
+              "cannot give yet (use the Python API: forms.make_law with a0 and alpha)")
     fields: dict[str, Any] = {}
     field_keys = ("S", "S_file", "S_function")
     if "S" in forms.FIELDS.get(law_name, ()):

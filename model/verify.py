@@ -65,6 +65,12 @@ class ReferenceEvaluator:
         if "S" in _law_fields(material):
             self.fields["S"] = fem.Function(space, name="S")
             extra["S"] = self.fields["S"]
+        if "a0" in _law_fields(material):
+            self.fields["a0"] = fem.Function(fem.VectorFunctionSpace(self.mesh, ("DG", 0)), name="a0")
+            extra["a0"] = self.fields["a0"]
+        if "alpha" in _law_fields(material):
+            self.fields["alpha"] = fem.Function(fem.FunctionSpace(self.mesh, ("DG", 0)), name="alpha")
+            extra["alpha"] = self.fields["alpha"]
         self.law: Law = forms.make_law(material, **extra, **params)
         Fv = ufl.variable(self.F)
         R = None
@@ -81,7 +87,9 @@ class ReferenceEvaluator:
         self.cells = np.arange(n, dtype=np.int32)
 
     def _set(self, function: fem.Function, values: np.ndarray) -> None:
-        function.x.array[:] = np.asarray(values, dtype=np.float64).reshape(self.num_samples, 9)[self.order].reshape(-1)
+        size = function.function_space.dofmap.index_map_bs
+        values = np.asarray(values, dtype=np.float64).reshape(self.num_samples, size)
+        function.x.array[:] = values[self.order].reshape(-1)
 
     def evaluate(self, F: np.ndarray, **fields: np.ndarray) -> dict[str, np.ndarray]:
         """{'psi': (N,), 'P': (N,3,3), 'A': (N,3,3,3,3)} at the given F (N,3,3) and fields."""
@@ -171,9 +179,18 @@ def deformation_samples(n: int, seed: int, inverted: bool = False,
 
 
 def field_samples(material: str, n: int, seed: int) -> dict[str, np.ndarray]:
-    """Per-sample fields of a law: S symmetric positive definite (identity, repeated and distinct eigenvalues)."""
+    """Per-sample fields of a law: S symmetric positive definite (identity, repeated and distinct
+    eigenvalues); a0 unit fibre directions (axis-aligned and random); alpha in [0, 1] (0, 1 and between)."""
     rng = np.random.default_rng(seed + 7919)
     out = {}
+    if "a0" in _law_fields(material):
+        a0 = rng.standard_normal((n, 3))
+        a0[0::4] = [1.0, 0.0, 0.0]
+        out["a0"] = a0 / np.linalg.norm(a0, axis=1)[:, None]
+    if "alpha" in _law_fields(material):
+        alpha = rng.uniform(0.0, 1.0, n)
+        alpha[0::3], alpha[1::3] = 0.0, 1.0
+        out["alpha"] = alpha
     if "S" in _law_fields(material):
         eig = rng.uniform(0.5, 2.0, (n, 3))
         eig[0::3] = 1.0  # identity targets

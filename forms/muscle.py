@@ -1,0 +1,221 @@
+"""Fibre-activated muscle and tendon (Teran et al. 2003 / Blemker et al. 2005 form, as in the thesis seed).
+
+    psi = F1 + U(J) + F2(lbar, alpha)
+    F1  = c1 (Ibar1 - 3) + c2 (Ibar2 - 3)          (isotropic = "mooney_rivlin", Teran)
+        | mu E:E + (lmbda/2)(tr E)^2               (isotropic = "stvk", as the thesis used)
+    U   = K (ln J)^2
+    lbar = sqrt(a0 . Cbar a0),  Cbar = J^(-2/3) C  (isochoric fibre stretch)
+
+F2 is defined by its derivative with F2(1) = 0 (energies.md), s = lbar / l_ofl:
+
+    muscle: dF2/dlbar = (sigma_max / l_ofl) (f_passive(s) + alpha f_active(s))
+      f_active(s)  = 9 (s - 0.4)^2        0.4 < s <= 0.6
+                   = 1 - 4 (1 - s)^2      0.6 < s < 1.4
+                   = 9 (s - 1.6)^2        1.4 <= s < 1.6,   0 outside (0.4, 1.6)
+      f_passive(s) = 0 (s <= 1);  P1 (exp(P2 (s - 1)) - 1) (1 < s < s*);  P3 s + P4 (s >= s*),
+                     s* = l_star / l_ofl, P3 = P1 P2 exp(P2 (s* - 1)), P4 = P1 (exp(P2 (s* - 1)) - 1) - P3 s*  (C1)
+    tendon: dF2/dlbar = sigma_tendon(lbar) = 0 (lbar <= 1); L1 (exp(L2 (lbar - 1)) - 1) (1 < lbar < l*_t);
+                        L3 lbar + L4 (lbar >= l*_t), C1 at l*_t.
+
+The energy uses the closed-form antiderivatives (below, with UFL conditionals), so that UFL
+derives P and A exactly: F2 = sigma_max [Fp(s) - Fp(1/l_ofl) + alpha (Fa(s) - Fa(1/l_ofl))] with
+Fa(s) = int_0.4^s f_active, Fp(s) = int_1^s f_passive (muscle), and F2 = Ft(lbar) = int_1^lbar
+sigma_tendon (tendon). Mixed split (forms.law): g = ln J, kappa = 2K.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import ufl
+
+from forms.isotropic import _lame_from
+from forms.kinematics import green_lagrange, isochoric_invariants, right_cauchy_green
+from forms.law import Expr, Law, ParameterError, check_keys, require, require_finite
+
+ISOTROPIC = ("mooney_rivlin", "stvk")
+
+
+def _piecewise(x: Expr, breaks: list[float], pieces: list[Expr]) -> Expr:
+    """pieces[0] for x <= breaks[0], pieces[i] for breaks[i-1] < x <= breaks[i], pieces[-1] beyond."""
+    out = pieces[-1]
+    for b, piece in zip(reversed(breaks), reversed(pieces[:-1])):
+        out = ufl.conditional(ufl.le(x, b), piece, out)
+    return out
+
+
+def active_antiderivative(s: Expr | float, mod: Any = ufl) -> Expr:
+    """Fa(s) = int_0.4^s f_active (closed form; mod = ufl or math for numbers)."""
+    a06 = 3 * 0.2**3
+    mid = lambda x: x + (4.0 / 3.0) * (1 - x) ** 3  # noqa: E731 - antiderivative of 1 - 4(1 - x)^2
+    a14 = a06 + mid(1.4) - mid(0.6)
+    a16 = a14 + 3 * (0.0 - (-0.2) ** 3)
+    pieces = [0.0 * s, 3 * (s - 0.4) ** 3, a06 + mid(s) - mid(0.6), a14 + 3 * ((s - 1.6) ** 3 + 0.2**3), a16 + 0.0 * s]
+    if mod is math:
+        for b, piece in zip([0.4, 0.6, 1.4, 1.6], pieces):
+            if s <= b:
+                return piece
+        return pieces[-1]
+    return _piecewise(s, [0.4, 0.6, 1.4, 1.6], pieces)
+
+
+def exponential_linear_antiderivative(x: Expr | float, start: float, star: float, P1: float, P2: float,
+                                      mod: Any = ufl) -> Expr:
+    """int_start^x f, f = 0 (x <= start); P1 (exp(P2 (x - start)) - 1) (start < x < star); C1 line beyond."""
+    exp = mod.exp
+    P3 = P1 * P2 * math.exp(P2 * (star - start))
+    P4 = P1 * (math.exp(P2 * (star - start)) - 1) - P3 * star
+    at_star = P1 * ((math.exp(P2 * (star - start)) - 1) / P2 - (star - start))
+    pieces = [0.0 * x, P1 * ((exp(P2 * (x - start)) - 1) / P2 - (x - start)),
+              at_star + 0.5 * P3 * (x**2 - star**2) + P4 * (x - star)]
+    if mod is math:
+        return pieces[0] if x <= start else pieces[1] if x <= star else pieces[2]
+    return _piecewise(x, [start, star], pieces)
+
+
+def fibre_stretch(F: Expr, a0: Expr) -> Expr:
+    """lbar = sqrt(a0 . Cbar a0), Cbar = J^(-2/3) F^T F."""
+    Cbar = ufl.det(F) ** (-2.0 / 3.0) * right_cauchy_green(F)
+    return ufl.sqrt(ufl.inner(a0, Cbar * a0))
+
+
+@dataclass(frozen=True)
+class _FibreLaw(Law):
+    """Isotropic part F1 + U(J) = K (ln J)^2, plus a fibre term F2(lbar) of the subclass."""
+
+    isotropic: str = "mooney_rivlin"
+    c1: float = 500.0
+    c2: float = 0.0
+    K: float = 1.0e7
+    mu: float = 0.0
+    lmbda: float = 0.0
+    a0: Any = None  # UFL vector: unit fibre direction in the reference configuration
+
+    def _check_isotropic(self) -> None:
+        require(self.isotropic in ISOTROPIC, self.name, "isotropic", self.isotropic, f"one of {', '.join(ISOTROPIC)}")
+        require_finite(self.name, c1=self.c1, c2=self.c2, K=self.K, mu=self.mu, lmbda=self.lmbda)
+        require(self.K > 0, self.name, "K", self.K, "> 0")
+        if self.isotropic == "mooney_rivlin":
+            require(self.c1 >= 0 and self.c2 >= 0, self.name, "c1" if self.c1 < 0 else "c2",
+                    self.c1 if self.c1 < 0 else self.c2, ">= 0")
+        else:
+            require(self.mu > 0, self.name, "mu", self.mu, "> 0 (isotropic = stvk)")
+
+    @classmethod
+    def _split(cls, params: dict[str, Any], own: tuple[str, ...]) -> dict[str, Any]:
+        isotropic = params.get("isotropic", "mooney_rivlin")
+        iso_keys = ("c1", "c2", "K") if isotropic == "mooney_rivlin" else ("E", "nu", "mu", "lmbda", "K")
+        check_keys(cls.name, params, ("isotropic", "a0", *iso_keys, *own))
+        out = dict(params)
+        if isotropic == "stvk":
+            lame = {k: out.pop(k) for k in ("E", "nu", "mu", "lmbda") if k in out}
+            out.update(_lame_from(cls.name, lame))
+        return out
+
+    @property
+    def bulk_penalty(self) -> float:
+        return 2.0 * self.K
+
+    def volume_constraint(self, F: Expr) -> Expr:
+        return ufl.ln(ufl.det(F))
+
+    def isotropic_energy(self, F: Expr) -> Expr:
+        if self.isotropic == "mooney_rivlin":
+            Ibar1, Ibar2 = isochoric_invariants(F)
+            return self.c1 * (Ibar1 - 3.0) + self.c2 * (Ibar2 - 3.0)
+        E = green_lagrange(F)
+        return self.mu * ufl.inner(E, E) + 0.5 * self.lmbda * ufl.tr(E) ** 2
+
+    def fibre_direction(self) -> Expr:
+        if self.a0 is None:
+            raise ValueError(f"{self.name}: the fibre direction a0 is required")
+        return self.a0
+
+    def fibre_energy(self, lbar: Expr) -> Expr:  # F2(lbar)
+        raise NotImplementedError
+
+    def reduced_energy(self, F: Expr, R: Expr | None = None) -> Expr:
+        return self.isotropic_energy(F) + self.fibre_energy(fibre_stretch(F, self.fibre_direction()))
+
+
+@dataclass(frozen=True)
+class Muscle(_FibreLaw):
+    """psi = F1 + K (ln J)^2 + F2(lbar, alpha), the active fibre term of the module docstring."""
+
+    name: ClassVar[str] = "muscle"
+    sigma_max: float = 3.0e5
+    P1: float = 0.05
+    P2: float = 6.6
+    l_ofl: float = 1.0
+    l_star: float = 1.4
+    alpha: Any = None  # UFL scalar in [0, 1]: the activation
+
+    def __post_init__(self) -> None:
+        self._check_isotropic()
+        require_finite(self.name, sigma_max=self.sigma_max, P1=self.P1, P2=self.P2, l_ofl=self.l_ofl,
+                       l_star=self.l_star)
+        require(self.sigma_max >= 0, self.name, "sigma_max", self.sigma_max, ">= 0")
+        require(self.P1 >= 0, self.name, "P1", self.P1, ">= 0")
+        require(self.P2 > 0, self.name, "P2", self.P2, "> 0")
+        require(self.l_ofl > 0, self.name, "l_ofl", self.l_ofl, "> 0")
+        require(self.l_star > self.l_ofl, self.name, "l_star", self.l_star, "> l_ofl")
+
+    @classmethod
+    def from_parameters(cls, alpha: Any = None, **params: Any) -> Muscle:
+        own = ("sigma_max", "P1", "P2", "l_ofl", "l_star", "alpha")
+        return cls(alpha=alpha, **cls._split(params, own))
+
+    def fibre_energy(self, lbar: Expr) -> Expr:
+        s = lbar / self.l_ofl
+        s0 = 1.0 / self.l_ofl
+        alpha = 0.0 if self.alpha is None else self.alpha
+        star = self.l_star / self.l_ofl
+
+        def passive(x: Any, mod: Any) -> Any:
+            return exponential_linear_antiderivative(x, 1.0, star, self.P1, self.P2, mod)
+
+        Fp = passive(s, ufl) - passive(s0, math)
+        Fa = active_antiderivative(s, ufl) - active_antiderivative(s0, math)
+        return self.sigma_max * (Fp + alpha * Fa)
+
+    def parameters(self) -> dict[str, Any]:
+        out = {k: getattr(self, k) for k in ("isotropic", "K", "sigma_max", "P1", "P2", "l_ofl", "l_star")}
+        out.update({"c1": self.c1, "c2": self.c2} if self.isotropic == "mooney_rivlin" else
+                   {"mu": self.mu, "lmbda": self.lmbda})
+        return out
+
+
+@dataclass(frozen=True)
+class Tendon(_FibreLaw):
+    """psi = F1 + K (ln J)^2 + F2(lbar), dF2/dlbar = sigma_tendon(lbar) of the module docstring (passive)."""
+
+    name: ClassVar[str] = "tendon"
+    L1: float = 2.7e6
+    L2: float = 46.4
+    l_star_t: float = 1.03
+
+    def __post_init__(self) -> None:
+        self._check_isotropic()
+        require_finite(self.name, L1=self.L1, L2=self.L2, l_star_t=self.l_star_t)
+        require(self.L1 >= 0, self.name, "L1", self.L1, ">= 0")
+        require(self.L2 > 0, self.name, "L2", self.L2, "> 0")
+        require(self.l_star_t > 1.0, self.name, "l_star_t", self.l_star_t, "> 1")
+
+    @classmethod
+    def from_parameters(cls, **params: Any) -> Tendon:
+        return cls(**cls._split(params, ("L1", "L2", "l_star_t")))
+
+    def fibre_energy(self, lbar: Expr) -> Expr:
+        return exponential_linear_antiderivative(lbar, 1.0, self.l_star_t, self.L1, self.L2, ufl)
+
+    def parameters(self) -> dict[str, Any]:
+        out = {k: getattr(self, k) for k in ("isotropic", "K", "L1", "L2", "l_star_t")}
+        out.update({"c1": self.c1, "c2": self.c2} if self.isotropic == "mooney_rivlin" else
+                   {"mu": self.mu, "lmbda": self.lmbda})
+        return out
+
+
+__all__ = ["Muscle", "ParameterError", "Tendon", "active_antiderivative", "exponential_linear_antiderivative",
+           "fibre_stretch"]
