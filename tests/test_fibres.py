@@ -1,0 +1,50 @@
+"""Fibre fields: constant, Laplace-computed (a straight cylinder gives its axis), per-cell arrays."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import meshes
+from model.domain import build_domain
+from model.fibres import FibreField, unit_vectors
+
+
+def domain_of(data):
+    comm = MPI.COMM_WORLD
+    return build_domain(comm, data if comm.rank == 0 else None)
+
+
+def owned_values(field: FibreField) -> np.ndarray:
+    return field.function.x.array.reshape(-1, 3)[field.function.function_space.dofmap.list.array[field.cells]]
+
+
+def test_laplace_fibres_of_a_straight_cylinder_are_its_axis() -> None:
+    domain = domain_of(meshes.cylinder(radius=0.3, length=2.0, size=0.3))
+    field = FibreField(domain).laplace("bottom", "top")
+    np.testing.assert_allclose(owned_values(field), np.tile([0.0, 0.0, 1.0], (len(field.cells), 1)), atol=1e-10)
+
+
+def test_laplace_on_a_region_of_the_fusiform_muscle() -> None:
+    domain = domain_of(meshes.fusiform(size=0.006))
+    field = FibreField(domain, "tendon_origin").laplace("origin", "insertion", region="all")
+    a0 = owned_values(field)
+    assert np.all(a0[:, 2] > 0.95)  # along the muscle's axis in the straight tendon
+    np.testing.assert_allclose(np.linalg.norm(a0, axis=1), 1.0, atol=1e-12)
+
+
+def test_constant_and_per_cell_fibres() -> None:
+    data = meshes.box(cells=(2, 2, 2))
+    domain = domain_of(data)
+    field = FibreField(domain).constant([0, 0, 0], [1.0, 2.0, 2.0])
+    np.testing.assert_allclose(owned_values(field), np.tile([1 / 3, 2 / 3, 2 / 3], (len(field.cells), 1)))
+    centroids = data.points[data.cells].mean(axis=1)
+    FibreField(domain).from_cell_array(centroids + 1.0)  # any non-zero per-cell directions
+    per_cell = FibreField(domain).from_cell_array(centroids + 1.0)
+    from dolfinx import mesh as dmesh
+
+    mid = dmesh.compute_midpoints(domain.mesh, 3, per_cell.cells)
+    np.testing.assert_allclose(owned_values(per_cell), unit_vectors(mid + 1.0), atol=1e-12)
+    with pytest.raises(ValueError, match="zero"):
+        FibreField(domain).constant([0, 0, 0], [0, 0, 0])
