@@ -17,12 +17,16 @@ Seeds (shared/seeds/):
   eq. 4.3, the same formulas as energies.md) are the law's ``mu``, ``lmbda``;
 - thesis eq. 4.5 (G = P B_m) and the stiffness printed below it, against the element vector and
   matrix dolfinx assembles on a one-cell mesh, for stvk, neo_hookean, corotated and shape_target.
+- thesis eqs. 4.8 (= B.19), 4.9, 4.10 and dU/dF = 2 K ln(J) F^-T -> law ``muscle`` with its fibre term
+  isolated (c1 = c2 = 0, P1 = 0, alpha = 1, a0 from ``field_samples``): P_fibre = P(muscle) - P(muscle with
+  sigma_max = 0) = dF2/dlbar d lbar/dF, at the samples whose fibre stretch lies in the middle piece of f_active;
+  the muscle with sigma_max = 0 is psi = K (ln J)^2 exactly, whose P is dU/dF.
 
 Rows (ids): klar-eq1, klar-eq2, klar-eq3, klar-eq4-6 (positive-det F), klar-psd (the PSD projection
 the paper describes, checked independently: optimality certificate and random competitors), the
 klar-eq1/eq3/eq4-6 ``-inverted`` rows (``--inverted`` samples: R* = U* V*^T as the text defines it
 is a reflection when det F < 0), thesis-eq4.3, -eq4.11, -eq4.12, -eqC.15, -eqC.16 (each with C.22),
-thesis-eq4.5-<law>; ``-corrected`` variants for every disagreement.
+thesis-eq4.5-<law>, thesis-eq4.8, -eqB.19, -eq4.9, -eq4.10, -dUdF; ``-corrected`` variants for every disagreement.
 """
 
 from __future__ import annotations
@@ -279,6 +283,133 @@ def thesis_eq4_12_corrected(F: np.ndarray, mu: float, lam: float) -> np.ndarray:
     term_a = mu * (np.einsum("ip,nqj->nijpq", I3, C) + np.einsum("nip,jq->nijpq", B, I3)
                    + np.einsum("niq,npj->nijpq", F, F) - np.einsum("ip,jq->ijpq", I3, I3))
     return term_a + _lambda_part_c22(F, lam)
+
+
+# --- thesis: the muscle law (eqs. 4.6-4.10, appendix B) --------------------------------------------------------
+
+#: the fibre term isolated: c1 = c2 = 0 (isotropic = mooney_rivlin), P1 = 0 (no passive curve), alpha = 1, and a
+#: small K so that P(muscle) - P(muscle with sigma_max = 0) loses nothing to cancellation
+MUSCLE_K, MUSCLE_SIGMA_MAX, MUSCLE_L_OFL = 1.5, 3.0, 1.0
+MUSCLE_FIBRE = {"c1": 0.0, "c2": 0.0, "K": MUSCLE_K, "sigma_max": MUSCLE_SIGMA_MAX, "P1": 0.0, "l_ofl": MUSCLE_L_OFL}
+#: the same law with no fibre term: psi = U(J) = K (ln J)^2 exactly
+MUSCLE_VOLUME = {**MUSCLE_FIBRE, "sigma_max": 0.0}
+#: fibre stretches kept: inside the middle piece of f_active (0.6, 1.4), away from its kinks
+MUSCLE_STRETCH_RANGE = (0.62, 1.38)
+
+
+def fibre_stretch_np(F: np.ndarray, a0: np.ndarray) -> np.ndarray:
+    """lbar = sqrt(a0 . J^(-2/3) F^T F a0) (thesis, after eq. 4.6)."""
+    Fa = np.einsum("nij,nj->ni", F, a0)
+    return np.sqrt(np.linalg.det(F) ** (-2.0 / 3.0) * np.einsum("ni,ni->n", Fa, Fa))
+
+
+def muscle_fibre_derivatives(lbar: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """dF2/dlbar and d2F2/dlbar2 of the isolated fibre term (alpha = 1, P1 = 0): sigma_max / l_ofl f_active(s),
+    in the middle piece 0.6 < s < 1.4 of f_active (Blemker table, thesis fig. B.1): f = 1 - 4 (1 - s)^2."""
+    s = lbar / MUSCLE_L_OFL
+    if np.any((s <= 0.6) | (s >= 1.4)):
+        raise ValueError("fibre stretch outside the middle piece of f_active")
+    scale = MUSCLE_SIGMA_MAX / MUSCLE_L_OFL
+    return scale * (1.0 - 4.0 * (1.0 - s) ** 2), scale * 8.0 * (1.0 - s) / MUSCLE_L_OFL
+
+
+def thesis_eq4_8_dlbar(F: np.ndarray, a0: np.ndarray) -> np.ndarray:
+    """Thesis eq. 4.8 (= B.19), as printed: d lbar/dF = J^(-2/3)/lbar [-1/3 F^-T tr((Fa)(Fa)^T) + F (a a^T)]."""
+    J = np.linalg.det(F)
+    lbar = fibre_stretch_np(F, a0)
+    Fa = np.einsum("nij,nj->ni", F, a0)
+    FinvT = _T(np.linalg.inv(F))
+    tr = np.einsum("ni,ni->n", Fa, Fa)  # tr((Fa)(Fa)^T)
+    bracket = -tr[:, None, None] * FinvT / 3.0 + F @ np.einsum("ni,nj->nij", a0, a0)
+    return (J ** (-2.0 / 3.0) / lbar)[:, None, None] * bracket
+
+
+def thesis_diagonalise(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """F = U Fhat V^T (numpy SVD; det F > 0 so Fhat = diag(sigma) needs no sign flip): U, sigma, V."""
+    U, sigma, Vt = np.linalg.svd(F)
+    return U, sigma, _T(Vt)
+
+
+def thesis_eq4_9_stress(F: np.ndarray, a0: np.ndarray, dF2: np.ndarray) -> np.ndarray:
+    """Thesis eq. 4.9 (= the unnumbered formula after fig. B.1), as printed, in the diagonalised frame:
+
+    Phat = dF2/dlbar (1/(2 lbar) V^T a0 . 2(-1/3 J^2 Fhat + J^(-2/3) Fhat Ones) V^T a0),
+    lbar = sqrt(V^T a0 . J^(-2/3) Fhat^2 V^T a0), J = det Fhat, Ones the all-ones matrix.
+    Read with "b . M b" (b = V^T a0) taken componentwise, M_ij b_i b_j with no sum, as B.8 writes
+    "(...)_lm a_l a_m": summed, the expression is a scalar and cannot be a stress. Returns Phat (n, 3, 3),
+    to compare with U^T P V.
+    """
+    _, sigma, V = thesis_diagonalise(F)
+    Fhat = sigma[:, :, None] * I3
+    b = np.einsum("nji,nj->ni", V, a0)
+    J = np.prod(sigma, axis=1)
+    lbar = np.sqrt(np.einsum("ni,nij,nj->n", b, J[:, None, None] ** (-2.0 / 3.0) * Fhat @ Fhat, b))
+    M = 2.0 * (-J[:, None, None] ** 2 * Fhat / 3.0 + J[:, None, None] ** (-2.0 / 3.0) * Fhat @ np.ones((3, 3)))
+    return (dF2 / (2.0 * lbar))[:, None, None] * M * np.einsum("ni,nj->nij", b, b)
+
+
+def thesis_eq4_9_corrected(F: np.ndarray, a0: np.ndarray, dF2: np.ndarray) -> np.ndarray:
+    """Eq. 4.8 in the diagonalised frame (Fhat^-T = Fhat^-1, b = V^T a0): Phat = U^T P V =
+    dF2/dlbar J^(-2/3)/lbar [-1/3 (b . Fhat^2 b) Fhat^-1 + Fhat b b^T]."""
+    _, sigma, V = thesis_diagonalise(F)
+    b = np.einsum("nji,nj->ni", V, a0)
+    J = np.prod(sigma, axis=1)
+    tr = np.einsum("ni,ni->n", sigma * b, sigma * b)  # b . Fhat^2 b
+    lbar = np.sqrt(J ** (-2.0 / 3.0) * tr)
+    bracket = -tr[:, None, None] * (1.0 / sigma)[:, :, None] * I3 / 3.0 + np.einsum("ni,nj->nij", sigma * b, b)
+    return (dF2 * J ** (-2.0 / 3.0) / lbar)[:, None, None] * bracket
+
+
+def thesis_eq4_10_tangent(F: np.ndarray, a0: np.ndarray) -> np.ndarray:
+    """Thesis eq. 4.10 (= the second derivative at the end of appendix B), as printed:
+
+    dP_aniso/dF = -2/9 J^(-2/3) (F^-T)_ij (a0 . J^(-2/3) F^T F a0)^(-1/2) (F^-T)_ij (Fa)_k (Fa)_k
+                  - 2/3 J^(-2/3) (F^-T)_ij (a0 . J^(-2/3) F^T F a0)^(-1/2) (Fa)_i a_j.
+    Only i, j are free as printed; read as A[p, q, k, l] = dP_pq/dF_kl with the leading (F^-T)_ij (the
+    derivative of J^(-2/3)) the differentiation pair (k, l) and the rest the stress pair (p, q):
+    A = -2/9 J^(-2/3)/lbar |Fa|^2 (F^-T)_pq (F^-T)_kl - 2/3 J^(-2/3)/lbar (Fa)_p a_q (F^-T)_kl.
+    """
+    J = np.linalg.det(F)
+    lbar = fibre_stretch_np(F, a0)
+    Fa = np.einsum("nij,nj->ni", F, a0)
+    FinvT = _T(np.linalg.inv(F))
+    c = J ** (-2.0 / 3.0) / lbar
+    first = (-2.0 / 9.0) * (c * np.einsum("ni,ni->n", Fa, Fa))[:, None, None, None, None] * \
+        np.einsum("npq,nkl->npqkl", FinvT, FinvT)
+    second = (-2.0 / 3.0) * c[:, None, None, None, None] * np.einsum("np,nq,nkl->npqkl", Fa, a0, FinvT)
+    return first + second
+
+
+def thesis_eq4_10_corrected(F: np.ndarray, a0: np.ndarray, dF2: np.ndarray, d2F2: np.ndarray) -> np.ndarray:
+    """dP_aniso/dF = d2F2/dlbar2 g (x) g + dF2/dlbar H, g = d lbar/dF (eq. 4.8) = -lbar/3 F^-T + c (Fa) a^T,
+    c = J^(-2/3)/lbar, and H = d g/dF:
+    H_pqkl = -1/3 (F^-T)_pq g_kl + lbar/3 (F^-1)_lp (F^-1)_qk + c (-2/3 (F^-T)_kl - g_kl/lbar) (Fa)_p a_q
+             + c delta_pk a_q a_l."""
+    J = np.linalg.det(F)
+    lbar = fibre_stretch_np(F, a0)
+    Fa = np.einsum("nij,nj->ni", F, a0)
+    Finv = np.linalg.inv(F)
+    FinvT = _T(Finv)
+    c = J ** (-2.0 / 3.0) / lbar
+    g = thesis_eq4_8_dlbar(F, a0)
+    x = (slice(None), None, None, None, None)
+    H = (-np.einsum("npq,nkl->npqkl", FinvT, g) / 3.0
+         + (lbar / 3.0)[x] * np.einsum("nlp,nqk->npqkl", Finv, Finv)
+         + c[x] * np.einsum("np,nq,nkl->npqkl", Fa, a0, -2.0 / 3.0 * FinvT - g / lbar[:, None, None])
+         + c[x] * np.einsum("pk,nq,nl->npqkl", I3, a0, a0))
+    return d2F2[x] * np.einsum("npq,nkl->npqkl", g, g) + dF2[x] * H
+
+
+def thesis_dUdF(F: np.ndarray, K: float) -> np.ndarray:
+    """Thesis (after eq. 4.10 and in appendix B), as printed: dU/dF = 2 K ln(J) F^-T for U = K (ln J)^2."""
+    J = np.linalg.det(F)
+    return (2.0 * K * np.log(J))[:, None, None] * _T(np.linalg.inv(F))
+
+
+def thesis_dUdFhat(F: np.ndarray, K: float) -> np.ndarray:
+    """The diagonalised form printed next to it: dU/dFhat = 2 K ln(det Fhat) Fhat^-1 (compare with U^T P V)."""
+    _, sigma, _ = thesis_diagonalise(F)
+    return (2.0 * K * np.log(np.prod(sigma, axis=1)))[:, None, None] * (1.0 / sigma)[:, :, None] * I3
 
 
 # --- hand-derived P and dP/dF of the other laws (for the element check of eq. 4.5) ------------------------------
@@ -637,6 +768,63 @@ def _thesis_rows(F: np.ndarray, ref: Quantities) -> list[SeedRow]:
     return rows
 
 
+def _thesis_muscle_rows() -> list[SeedRow]:
+    """Eqs. 4.8 (B.19), 4.9, 4.10 and dU/dF against the ``muscle`` law with its fibre term isolated."""
+    F, _ = deformation_samples(SAMPLES, SEED)
+    a0 = field_samples("muscle", SAMPLES, SEED)["a0"]
+    alpha = np.ones(SAMPLES)
+    full = ReferenceEvaluator("muscle", MUSCLE_FIBRE, SAMPLES).evaluate(F, a0=a0, alpha=alpha)
+    volume = ReferenceEvaluator("muscle", MUSCLE_VOLUME, SAMPLES).evaluate(F, a0=a0, alpha=alpha)
+    lbar = fibre_stretch_np(F, a0)
+    lo, hi = MUSCLE_STRETCH_RANGE
+    keep = (lbar > lo * MUSCLE_L_OFL) & (lbar < hi * MUSCLE_L_OFL)
+    Fk, ak = F[keep], a0[keep]
+    dF2, d2F2 = muscle_fibre_derivatives(lbar[keep])
+    # P_fibre = P(muscle) - P(U) = dF2/dlbar d lbar/dF, A_fibre likewise
+    fibre = {"P": (full["P"] - volume["P"])[keep], "A": (full["A"] - volume["A"])[keep]}
+    where = (f"{int(keep.sum())} of {SAMPLES} samples with {lo} < lbar < {hi} (alpha = 1, P1 = 0, c1 = c2 = 0: "
+             "P_fibre = P(muscle) - P(muscle, sigma_max = 0))")
+    U, _, V = thesis_diagonalise(Fk)
+    fibre_hat = {"P": _T(U) @ fibre["P"] @ V}
+    src = f"{THESIS} "
+    rows = [_row("thesis-eq4.8", src + "eq. 4.8 (= B.19)",
+                 _check({"P": dF2[:, None, None] * thesis_eq4_8_dlbar(Fk, ak)}, fibre),
+                 f"agrees: dF2/dlbar times eq. 4.8 is the UFL fibre stress; {where}"),
+            _row("thesis-eqB.19", src + "eq. B.19",
+                 _check({"P": dF2[:, None, None] * thesis_eq4_8_dlbar(Fk, ak)}, fibre),
+                 "agrees: B.19 is eq. 4.8 (the same formula, derived step by step in B.2-B.18)")]
+    rows.append(_row("thesis-eq4.9", src + "eq. 4.9 (and after fig. B.1)",
+                     _check({"P": thesis_eq4_9_stress(Fk, ak, dF2)}, fibre_hat),
+                     "the F^-T term is wrong in the diagonal frame: -1/3 J^2 Fhat must be -1/3 (b . Fhat^2 b) Fhat^-1 "
+                     "(F^-T tr((Fa)(Fa)^T) with Fhat^-T = Fhat^-1, b = V^T a0); Fhat Ones (x) b b^T is the right "
+                     "Fhat b b^T; compared in the frame U^T P V"))
+    rows.append(_row("thesis-eq4.9-corrected", src + "eq. 4.9",
+                     _check({"P": thesis_eq4_9_corrected(Fk, ak, dF2)}, fibre_hat),
+                     "Phat = dF2/dlbar J^(-2/3)/lbar [-1/3 (b . Fhat^2 b) Fhat^-1 + Fhat b b^T], b = V^T a0 "
+                     "(eq. 4.8 with F = Fhat)"))
+    as_lambda_hessian = _check({"A": d2F2[:, None, None, None, None] * np.einsum(
+        "npq,nkl->npqkl", thesis_eq4_8_dlbar(Fk, ak), thesis_eq4_8_dlbar(Fk, ak))
+        + dF2[:, None, None, None, None] * thesis_eq4_10_tangent(Fk, ak)}, fibre)[0]
+    rows.append(_row("thesis-eq4.10", src + "eq. 4.10 (and end of appendix B)",
+                     _check({"A": thesis_eq4_10_tangent(Fk, ak)}, fibre),
+                     "incomplete: it only differentiates the J^(-2/3) factor of eq. 4.8 (with -2/9 where that gives "
+                     "+2/9), drops d(F^-T)/dF, d|Fa|^2/dF, d(1/lbar)/dF and d(F a a^T)/dF, and the chain rule "
+                     "factors dF2/dlbar and d2F2/dlbar2 (dlbar/dF (x) dlbar/dF); even read as d2lbar/dF2 inside "
+                     f"the chain rule it disagrees (rel {as_lambda_hessian.max_rel_error:.1e})"))
+    rows.append(_row("thesis-eq4.10-corrected", src + "eq. 4.10",
+                     _check({"A": thesis_eq4_10_corrected(Fk, ak, dF2, d2F2)}, fibre),
+                     "d2F2/dlbar2 g (x) g + dF2/dlbar dg/dF, g = eq. 4.8 = -lbar/3 F^-T + J^(-2/3)/lbar (Fa) a^T, "
+                     "dg/dF written out in thesis_eq4_10_corrected"))
+    U_all, _, V_all = thesis_diagonalise(F)
+    checks = _check({"P": thesis_dUdF(F, MUSCLE_K)}, volume)
+    checks += _check({"P": thesis_dUdFhat(F, MUSCLE_K)}, {"P": _T(U_all) @ volume["P"] @ V_all})
+    rows.append(_row("thesis-dUdF", src + "dU/dF after eq. 4.10 (and appendix B)", checks,
+                     f"agrees at all {SAMPLES} samples: 2 K ln(J) F^-T is P of the muscle law with c1 = c2 = 0, "
+                     "sigma_max = 0 (psi = K (ln J)^2); the diagonalised 2 K ln(det Fhat) Fhat^-1 equals U^T P V "
+                     f"(rel {checks[1].max_rel_error:.1e})"))
+    return rows
+
+
 HandLaw = tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]
 
 
@@ -684,6 +872,7 @@ def seed_rows(include_inverted: bool = True) -> list[SeedRow]:
     if include_inverted:
         rows += _klar_inverted_rows(klar)
     rows += _thesis_rows(F, stvk_ref)
+    rows += _thesis_muscle_rows()
     rows += _element_rows()
     return rows
 

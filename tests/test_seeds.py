@@ -24,8 +24,10 @@ AGREE = {
     "klar-eq1", "klar-eq3", "klar-eq4-6", "klar-psd", "klar-eq1-inverted",
     "thesis-eq4.11", "thesis-eqC.15",
     "thesis-eq4.5-stvk", "thesis-eq4.5-neo_hookean", "thesis-eq4.5-corotated", "thesis-eq4.5-shape_target",
+    "thesis-eq4.8", "thesis-eqB.19", "thesis-dUdF",
 }
-DISAGREE = {"klar-eq2", "klar-eq3-inverted", "klar-eq4-6-inverted", "thesis-eq4.3", "thesis-eq4.12", "thesis-eqC.16"}
+DISAGREE = {"klar-eq2", "klar-eq3-inverted", "klar-eq4-6-inverted", "thesis-eq4.3", "thesis-eq4.12", "thesis-eqC.16",
+            "thesis-eq4.9", "thesis-eq4.10"}
 CORRECTED = {f"{id_}-corrected" for id_ in DISAGREE}
 KEYS = {"id", "source", "agrees", "max_rel_error", "diagnosis"}
 
@@ -99,3 +101,18 @@ def test_cli_verify_seeds(tmp_path: Path) -> None:
     assert all(set(d) == KEYS for d in data)
     for d in data:
         assert d["id"] in proc.stdout
+
+
+def test_thesis_muscle_corrected_tangent_is_the_derivative_of_eq4_8() -> None:
+    """eq. 4.10-corrected = d/dF (dF2/dlbar eq. 4.8) by central differences, independently of UFL."""
+    F = np.array([np.eye(3) + 0.1 * g for g in np.random.default_rng(11).standard_normal((6, 3, 3))])
+    a0 = field_samples("muscle", 6, 11)["a0"]
+
+    def stress(G: np.ndarray) -> np.ndarray:
+        dF2, _ = seeds.muscle_fibre_derivatives(seeds.fibre_stretch_np(G, a0))
+        return dF2[:, None, None] * seeds.thesis_eq4_8_dlbar(G, a0)
+
+    dF2, d2F2 = seeds.muscle_fibre_derivatives(seeds.fibre_stretch_np(F, a0))
+    exact = seeds.thesis_eq4_10_corrected(F, a0, dF2, d2F2)
+    fd = seeds._central_differences(stress, F)
+    np.testing.assert_allclose(exact, fd, atol=1e-7 * np.abs(exact).max())
