@@ -133,8 +133,16 @@ class _FibreLaw(Law):
             raise ValueError(f"{self.name}: the fibre direction a0 is required")
         return self.a0
 
+    #: the subclass's parameters of F2, reported by parameters()
+    fibre_parameters: ClassVar[tuple[str, ...]] = ()
+
     def fibre_energy(self, lbar: Expr) -> Expr:  # F2(lbar)
         raise NotImplementedError
+
+    def parameters(self) -> dict[str, Any]:
+        """isotropic, K, the isotropic part's constants and the fibre curve's parameters."""
+        iso = ("c1", "c2") if self.isotropic == "mooney_rivlin" else ("mu", "lmbda")
+        return {k: getattr(self, k) for k in ("isotropic", "K", *iso, *self.fibre_parameters)}
 
     def reduced_energy(self, F: Expr, R: Expr | None = None) -> Expr:
         return self.isotropic_energy(F) + self.fibre_energy(fibre_stretch(F, self.fibre_direction()))
@@ -180,11 +188,7 @@ class Muscle(_FibreLaw):
         Fa = active_antiderivative(s, ufl) - active_antiderivative(s0, math)
         return self.sigma_max * (Fp + alpha * Fa)
 
-    def parameters(self) -> dict[str, Any]:
-        out = {k: getattr(self, k) for k in ("isotropic", "K", "sigma_max", "P1", "P2", "l_ofl", "l_star")}
-        out.update({"c1": self.c1, "c2": self.c2} if self.isotropic == "mooney_rivlin" else
-                   {"mu": self.mu, "lmbda": self.lmbda})
-        return out
+    fibre_parameters: ClassVar[tuple[str, ...]] = ("sigma_max", "P1", "P2", "l_ofl", "l_star")
 
 
 @dataclass(frozen=True)
@@ -210,11 +214,7 @@ class Tendon(_FibreLaw):
     def fibre_energy(self, lbar: Expr) -> Expr:
         return exponential_linear_antiderivative(lbar, 1.0, self.l_star_t, self.L1, self.L2, ufl)
 
-    def parameters(self) -> dict[str, Any]:
-        out = {k: getattr(self, k) for k in ("isotropic", "K", "L1", "L2", "l_star_t")}
-        out.update({"c1": self.c1, "c2": self.c2} if self.isotropic == "mooney_rivlin" else
-                   {"mu": self.mu, "lmbda": self.lmbda})
-        return out
+    fibre_parameters: ClassVar[tuple[str, ...]] = ("L1", "L2", "l_star_t")
 
 
 __all__ = ["Muscle", "ParameterError", "Tendon", "active_antiderivative", "exponential_linear_antiderivative",
