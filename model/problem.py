@@ -91,6 +91,7 @@ class ElasticityProblem:
         self.external = 0
         self.strain_energy = 0
         self.stress_terms: list[tuple[ufl.core.expr.Expr, ufl.Measure]] = []
+        self.extra_energies: list[ufl.Form] = []
         for region, law in self.materials:
             self._add_material(region, law)
         self.dirichlet: list[DirichletBoundary] = []
@@ -167,6 +168,23 @@ class ElasticityProblem:
         J = ufl.det(self.F)
         t0 = -pressure * J * ufl.inv(self.F).T * N
         self.external += self.load_factor * ufl.inner(t0, self.v) * self.boundary_measure(name)
+        self._forms = None
+
+    def add_energy(self, energy: ufl.Form) -> None:
+        """Add a potential Pi (a UFL form in the solution, e.g. a contact penalty): R += dPi/du [v].
+
+        Call before a solver is created (the forms are compiled then).
+        """
+        self.internal += ufl.derivative(energy, self.solution, ufl.TestFunction(self.space))
+        self.extra_energies.append(energy)
+        self._forms = None
+
+    def add_residual(self, form: ufl.Form) -> None:
+        """Add a residual term linear in the test functions (self.v, self.q), e.g. inertia or damping.
+
+        Call before a solver is created (the forms are compiled then).
+        """
+        self.internal += form
         self._forms = None
 
     def add_load_hook(self, hook: Callable[[float], None]) -> None:
