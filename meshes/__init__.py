@@ -6,15 +6,17 @@ name -> tag maps); distributing it over MPI ranks is left to the caller.
 Generators (all return :class:`MeshData`; see each function for its parameters
 and physical group names):
 
-========== ================================================ =======================
-name       physical volumes                                  physical surfaces
-========== ================================================ =======================
-box        body                                              xmin xmax ymin ymax zmin zmax
-cylinder   body                                              bottom top lateral
-cook       body                                              left right bottom top front back
-fusiform   belly tendon_origin tendon_insertion              origin insertion surface
-trunk      trunk                                             base top bark
-========== ================================================ =======================
+=========== ================================================ =======================
+name        physical volumes                                  physical surfaces
+=========== ================================================ =======================
+box         body                                              xmin xmax ymin ymax zmin zmax
+cylinder    body                                              bottom top lateral
+cook        body                                              left right bottom top front back
+fusiform    belly tendon_origin tendon_insertion              origin insertion surface
+trunk       trunk                                             base top bark
+arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_insertion b_origin b_insertion
+                                                              proximal distal skin
+=========== ================================================ =======================
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from collections.abc import Callable
 from typing import Any
 
 from meshes._validate import ParameterError
+from meshes.arm_segment import arm_segment
 from meshes.box import box
 from meshes.cook import cook
 from meshes.cylinder import cylinder
@@ -35,6 +38,7 @@ __all__ = [
     "GENERATORS",
     "MeshData",
     "ParameterError",
+    "arm_segment",
     "box",
     "cook",
     "cylinder",
@@ -54,6 +58,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "cook": cook,
     "fusiform": fusiform,
     "trunk": trunk,
+    "arm_segment": arm_segment,
 }
 
 

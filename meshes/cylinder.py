@@ -3,6 +3,11 @@
 The extrusion (without recombination, so each prism is split into tetrahedra) makes every lateral
 facet a vertical plane: a function linear in z then solves zero-flux problems on the discrete
 domain exactly (a Laplace fibre field is the axis to rounding, not to the faceting error).
+
+The disk's centre is a geometric vertex of the disk (fragmented into it before extrusion), so the axis
+``x = y = 0`` is an edge of the mesh with a vertex on every layer, and the circle starts (and is
+split) at ``(radius, 0)``: the nodes ``(0, 0, z)`` and ``(radius, 0, z)`` exist (to rounding) on the bottom
+(``z = 0``) and top (``z = length``) faces, for point constraints that remove rigid-body modes.
 """
 
 from __future__ import annotations
@@ -40,8 +45,11 @@ def _classify_face(z_center: float, length: float) -> str:
 def build_cylinder_model(radius: float, length: float, layers: int = 1) -> None:
     """Create the cylinder (a disk extruded in ``layers`` layers) and its physical groups (no meshing)."""
     occ = gmsh.model.occ
-    disk = occ.addDisk(0.0, 0.0, 0.0, radius, radius)
-    extruded = occ.extrude([(2, disk)], 0.0, 0.0, length, numElements=[layers], recombine=False)
+    disk = occ.addDisk(0.0, 0.0, 0.0, radius, radius)  # its circle starts at (radius, 0, 0)
+    # the centre becomes a vertex inside the disk, extruded into an edge on the axis
+    pieces, _ = occ.fragment([(2, disk)], [(0, occ.addPoint(0.0, 0.0, 0.0))])
+    surfaces = [(dim, tag) for dim, tag in pieces if dim == 2]
+    extruded = occ.extrude(surfaces, 0.0, 0.0, length, numElements=[layers], recombine=False)
     volume = next(tag for dim, tag in extruded if dim == 3)
     occ.synchronize()
     faces: dict[str, list[int]] = {name: [] for name in CYLINDER_FACES}
@@ -77,7 +85,10 @@ def cylinder(radius: float = 0.5, length: float = 2.0, size: float = 0.25) -> Me
     -------
     MeshData
         Volume ``body`` (tag 1); faces ``bottom`` (z=0), ``top`` (z=length) and
-        ``lateral`` (tags 1..3).
+        ``lateral`` (tags 1..3).  The vertices ``(0, 0, z)`` and ``(radius, 0, z)`` exist
+        (to rounding) for ``z = 0`` and ``z = length`` and on every extrusion layer between:
+        point constraints there remove the rigid-body modes (e.g. a slider end: fix the
+        axis point and the y component at ``(radius, 0, z)``).
     """
     r = positive_float("cylinder", "radius", radius)
     h = positive_float("cylinder", "length", length)

@@ -32,6 +32,7 @@ __all__ = [
     "FUSIFORM_FACES",
     "FUSIFORM_REGIONS",
     "SECTIONS",
+    "add_muscle",
     "belly_radius_at",
     "build_fusiform_model",
     "fusiform",
@@ -57,14 +58,14 @@ def belly_radius_at(s: np.ndarray | float, belly_radius: float, tendon_radius: f
     return tendon_radius + (belly_radius - tendon_radius) * np.sin(np.pi * np.asarray(s, dtype=float)) ** 2
 
 
-def _add_belly(z0: float, length: float, belly_radius: float, tendon_radius: float) -> int:
-    """Loft the belly through :data:`SECTIONS` circles; return the OCC volume tag."""
+def _add_belly(z0: float, length: float, belly_radius: float, tendon_radius: float, x0: float = 0.0) -> int:
+    """Loft the belly (axis ``x = x0, y = 0``) through :data:`SECTIONS` circles; return the OCC volume tag."""
     occ = gmsh.model.occ
     s = np.linspace(0.0, 1.0, SECTIONS)
     radii = belly_radius_at(s, belly_radius, tendon_radius)
     wires = []
     for si, ri in zip(s.tolist(), radii.tolist(), strict=True):
-        circle = occ.addCircle(0.0, 0.0, z0 + si * length, ri)
+        circle = occ.addCircle(x0, 0.0, z0 + si * length, ri)
         wires.append(occ.addCurveLoop([circle]))
     out = occ.addThruSections(wires, makeSolid=True, makeRuled=False)
     volumes = [tag for dim, tag in out if dim == 3]
@@ -83,14 +84,27 @@ def _face_name(z_center: float, total: float) -> str:
     return "surface"
 
 
+def add_muscle(
+    length: float, belly_radius: float, tendon_radius: float, tendon_length: float, x0: float = 0.0
+) -> tuple[int, int, int]:
+    """Add the (unfragmented) belly, origin and insertion tendon solids on the axis ``x = x0, y = 0``.
+
+    The muscle spans ``z in [0, length + 2 tendon_length]``; returns the OCC volume tags
+    ``(belly, tendon_origin, tendon_insertion)``.
+    """
+    occ = gmsh.model.occ
+    belly = _add_belly(tendon_length, length, belly_radius, tendon_radius, x0)
+    origin = occ.addCylinder(x0, 0.0, 0.0, 0.0, 0.0, tendon_length, tendon_radius)
+    insertion = occ.addCylinder(x0, 0.0, tendon_length + length, 0.0, 0.0, tendon_length, tendon_radius)
+    return belly, origin, insertion
+
+
 def build_fusiform_model(
     length: float, belly_radius: float, tendon_radius: float, tendon_length: float
 ) -> None:
     """Create the fragmented muscle geometry and its physical groups in the current gmsh model."""
     occ = gmsh.model.occ
-    belly = _add_belly(tendon_length, length, belly_radius, tendon_radius)
-    origin = occ.addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, tendon_length, tendon_radius)
-    insertion = occ.addCylinder(0.0, 0.0, tendon_length + length, 0.0, 0.0, tendon_length, tendon_radius)
+    belly, origin, insertion = add_muscle(length, belly_radius, tendon_radius, tendon_length)
     _, mapping = occ.fragment([(3, belly)], [(3, origin), (3, insertion)])
     occ.synchronize()
     volumes: dict[str, list[int]] = {}

@@ -49,11 +49,31 @@ class DiscretizationConfig:
 
 
 @dataclass(frozen=True)
+class FibreConfig:
+    """[material].fibres: where a0 comes from (model.fibres).
+
+    type = "constant": the unit vector from point ``origin`` to point ``insertion``;
+    type = "laplace": grad phi / |grad phi|, phi = 0 on surface ``origin``, 1 on surface ``insertion``,
+    harmonic on ``regions`` (default: the material's region);
+    type = "file": a .npy array (num_cells, 3) in mesh cell order.
+    """
+
+    type: str
+    origin: tuple[float, ...] | str | None = None
+    insertion: tuple[float, ...] | str | None = None
+    regions: tuple[str, ...] = ()
+    file: Path | None = None
+
+
+@dataclass(frozen=True)
 class MaterialConfig:
     region: str
     law: forms.Law
     #: field name -> source: a 3x3 array (constant), an (n, 3, 3) array (per cell) or f(x, t) (procedural)
     fields: dict[str, Any] = field(default_factory=dict)
+    fibres: FibreConfig | None = None
+    #: activation alpha against time (load factor): (t_i, alpha_i), piecewise linear, constant beyond the ends
+    activation: tuple[tuple[float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -63,6 +83,8 @@ class BoundaryConfig:
     components: tuple[int, ...] = (0, 1, 2)
     value: tuple[float, ...] = ()
     expression: tuple[str, ...] = ()
+    #: restrict a displacement condition to the boundary's nodes at these points (e.g. to stop rigid-body modes)
+    points: tuple[tuple[float, ...], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -289,9 +311,19 @@ def _material(raw: dict[str, Any], key: str, base: Path = Path(".")) -> Material
     if "law" not in raw:
         _fail(f"{key}.law", f"missing (choose from {', '.join(sorted(forms.LAWS))})")
     law_name = _string(raw["law"], f"{key}.law", tuple(sorted(forms.LAWS)))
-    if law_name in ("muscle", "tendon"):
-        _fail(f"{key}.law", f"{law_name} needs fibre directions and activations, which configuration files "
-              "cannot give yet (use the Python API: forms.make_law with a0 and alpha)")
+    fibre_keys = ("fibres", "activation")
+    fibres, activation = None, ()
+    if "a0" in forms.FIELDS.get(law_name, ()):
+        if "fibres" not in raw:
+            _fail(f"{key}.fibres", f"missing: {law_name} needs fibre directions, e.g. fibres = {{ type = \"laplace\", "
+                  "origin = \"SURFACE\", insertion = \"SURFACE\" }")
+        fibres = _fibres(raw["fibres"], f"{key}.fibres", base)
+    elif "fibres" in raw:
+        _fail(f"{key}.fibres", f"only applies to laws with fibres (muscle, tendon), not {law_name}")
+    if "alpha" in forms.FIELDS.get(law_name, ()):
+        activation = _activation(raw.get("activation", 0.0), f"{key}.activation")
+    elif "activation" in raw:
+        _fail(f"{key}.activation", f"only applies to law = \"muscle\", not {law_name}")
     fields: dict[str, Any] = {}
     field_keys = ("S", "S_file", "S_function")
     if "S" in forms.FIELDS.get(law_name, ()):
@@ -302,11 +334,16 @@ def _material(raw: dict[str, Any], key: str, base: Path = Path(".")) -> Material
         for k in field_keys:
             if k in raw:
                 _fail(f"{key}.{k}", f"only applies to laws with a shape target (shape_target, volume), not {law_name}")
-    params = {k: v for k, v in raw.items() if k not in ("region", "law", *field_keys)}
+    params = {k: v for k, v in raw.items() if k not in ("region", "law", *field_keys, *fibre_keys)}
+    if "isotropic" in params and law_name in ("muscle", "tendon"):
+        from forms.muscle import ISOTROPIC
+
+        _string(params["isotropic"], f"{key}.isotropic", ISOTROPIC)
 
     def check_numbers() -> None:
         for k, v in params.items():
-            _number(v, f"{key}.{k}")
+            if k != "isotropic":
+                _number(v, f"{key}.{k}")
 
     # errors in the order: unknown parameter (e.g. a misspelt "region"), wrong type, missing or out of range
     try:
@@ -320,7 +357,65 @@ def _material(raw: dict[str, Any], key: str, base: Path = Path(".")) -> Material
         check_numbers()
         raise
     check_numbers()
-    return MaterialConfig(region, law, fields)
+    return MaterialConfig(region, law, fields, fibres, activation)
+
+
+FIBRE_TYPES = ("constant", "laplace", "file")
+
+
+def _fibres(value: Any, key: str, base: Path) -> FibreConfig:
+    """[material].fibres: an inline table with ``type`` and the keys of that type (FibreConfig)."""
+    raw = _table(value, key)
+    if "type" not in raw:
+        _fail(f"{key}.type", f"missing (one of {', '.join(FIBRE_TYPES)})")
+    kind = _string(raw["type"], f"{key}.type", FIBRE_TYPES)
+    allowed = {"constant": {"type", "origin", "insertion"}, "laplace": {"type", "origin", "insertion", "regions"},
+               "file": {"type", "file"}}[kind]
+    _known(raw, allowed, key)
+    for k in sorted(allowed - {"type", "regions"}):
+        if k not in raw:
+            what = {"constant": "a point [x, y, z]", "laplace": "the name of a boundary", "file": "a .npy file"}[kind]
+            _fail(f"{key}.{k}", f"missing ({what})")
+    if kind == "constant":
+        origin = _vector(raw["origin"], f"{key}.origin", 3)
+        insertion = _vector(raw["insertion"], f"{key}.insertion", 3)
+        if np.linalg.norm(np.subtract(insertion, origin)) == 0.0:
+            _fail(f"{key}.insertion", f"{list(insertion)} equals origin: the fibre direction is undefined")
+        return FibreConfig(kind, origin, insertion)
+    if kind == "laplace":
+        origin = _string(raw["origin"], f"{key}.origin")
+        insertion = _string(raw["insertion"], f"{key}.insertion")
+        if origin == insertion:
+            _fail(f"{key}.insertion", f"{insertion!r} is also the origin surface")
+        regions = raw.get("regions", [])
+        if not isinstance(regions, list) or not regions and "regions" in raw:
+            _fail(f"{key}.regions", f"must be a non-empty array of region names, got {regions!r}")
+        names = tuple(_string(r, f"{key}.regions[{i}]") for i, r in enumerate(regions))
+        return FibreConfig(kind, origin, insertion, names)
+    path = Path(_string(raw["file"], f"{key}.file"))
+    if not path.is_absolute():
+        path = base / path
+    if not path.is_file():
+        _fail(f"{key}.file", f"no such file: {path}")
+    return FibreConfig(kind, file=path)
+
+
+def _activation(value: Any, key: str) -> tuple[tuple[float, float], ...]:
+    """A constant activation in [0, 1], or a table [[t0, alpha0], [t1, alpha1], ...] with t increasing."""
+    if not isinstance(value, list):
+        alpha = _number(value, key)
+        if not 0.0 <= alpha <= 1.0:
+            _fail(key, f"{alpha} is out of range, must be in [0, 1]")
+        return ((0.0, alpha),)
+    if not value:
+        _fail(key, "must be a number in [0, 1] or a table [[t0, alpha0], [t1, alpha1], ...]")
+    table = tuple(_vector(row, f"{key}[{i}]", 2, " (time, activation)") for i, row in enumerate(value))
+    for i, (t, alpha) in enumerate(table):
+        if not 0.0 <= alpha <= 1.0:
+            _fail(f"{key}[{i}][1]", f"{alpha} is out of range, must be in [0, 1]")
+        if i and t <= table[i - 1][0]:
+            _fail(f"{key}[{i}][0]", f"times must increase, got {t} after {table[i - 1][0]}")
+    return table  # type: ignore[return-value]
 
 
 def _parameter_key(key: str, message: str, params: dict[str, Any]) -> str:
@@ -336,7 +431,7 @@ def _parameter_key(key: str, message: str, params: dict[str, Any]) -> str:
 
 
 def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
-    _known(raw, {"on", "type", "components", "value", "expression"}, key)
+    _known(raw, {"on", "type", "components", "value", "expression", "points"}, key)
     if "on" not in raw:
         _fail(f"{key}.on", "missing (the name of a boundary)")
     on = _string(raw["on"], f"{key}.on")
@@ -352,9 +447,14 @@ def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
             _fail(f"{key}.components", f"{list(comps)} must be distinct entries of 0, 1, 2")
         if ("value" in raw) == ("expression" in raw):
             _fail(f"{key}.value", "give exactly one of value or expression")
+        points: tuple[tuple[float, ...], ...] = ()
+        if "points" in raw:
+            if not isinstance(raw["points"], list) or not raw["points"]:
+                _fail(f"{key}.points", f"must be a non-empty array of points [[x, y, z], ...], got {raw['points']!r}")
+            points = tuple(_vector(p, f"{key}.points[{i}]", 3) for i, p in enumerate(raw["points"]))
         if "value" in raw:
             value = _vector(raw["value"], f"{key}.value", len(comps), f" (one per entry of components {list(comps)})")
-            return BoundaryConfig(on, kind, comps, value=value)
+            return BoundaryConfig(on, kind, comps, value=value, points=points)
         expr = raw["expression"]
         if not isinstance(expr, list) or len(expr) != len(comps):
             _fail(f"{key}.expression", f"must be an array of {len(comps)} strings (one per component)")
@@ -366,8 +466,8 @@ def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
                 compile_expression(e)
             except ValueError as err:
                 _fail(f"{key}.expression[{i}]", str(err))
-        return BoundaryConfig(on, kind, comps, expression=exprs)
-    for k in ("components", "expression"):
+        return BoundaryConfig(on, kind, comps, expression=exprs, points=points)
+    for k in ("components", "expression", "points"):
         if k in raw:
             _fail(f"{key}.{k}", f"only applies to type = \"displacement\", not {kind!r}")
     if "value" not in raw:

@@ -33,13 +33,19 @@ def unit_vectors(values: np.ndarray, where: str = "a0") -> np.ndarray:
 
 
 class FibreField:
-    """a0 on the cells of a region as a DG0 vector Function (zero elsewhere)."""
+    """a0 on the cells of a region as a DG0 vector Function (zero elsewhere).
 
-    def __init__(self, domain: Domain, region: str = "all", name: str = "fibre_direction") -> None:
+    Several regions may share one Function (pass ``function``): each sets its own cells.
+    """
+
+    def __init__(self, domain: Domain, region: str = "all", name: str = "fibre_direction",
+                 function: fem.Function | None = None) -> None:
         self.domain = domain
         self.cells = domain.region_cells(region)
-        space = fem.VectorFunctionSpace(domain.mesh, ("DG", 0))
-        self.function = fem.Function(space, name=name)
+        if function is None:
+            function = fem.Function(fem.VectorFunctionSpace(domain.mesh, ("DG", 0)), name=name)
+        space = function.function_space
+        self.function = function
         dofs = space.dofmap.list.array.reshape(-1)[self.cells]
         self._index = (dofs[:, None] * 3 + np.arange(3)).reshape(-1)
 
@@ -64,22 +70,32 @@ class FibreField:
         original = np.asarray(msh.topology.original_cell_index, dtype=np.int64)
         return self.set_values(array[original[self.cells]])
 
-    def laplace(self, origin: str, insertion: str, region: str = "all") -> FibreField:
-        """a0 = grad phi / |grad phi|, phi harmonic on the region, 0 on ``origin``, 1 on ``insertion``."""
-        phi = solve_laplace(self.domain, origin, insertion, region)
+    def laplace(self, origin: str, insertion: str, region: str | Sequence[str] = "all",
+                potential: fem.Function | None = None) -> FibreField:
+        """a0 = grad phi / |grad phi|, phi harmonic on the region(s), 0 on ``origin``, 1 on ``insertion``.
+
+        ``potential``: a phi already solved (solve_laplace), e.g. shared by several regions.
+        """
+        phi = potential if potential is not None else solve_laplace(self.domain, origin, insertion, region)
         grad = fem.Expression(ufl.grad(phi), np.zeros((1, 3)) + 0.25)  # P1: grad is constant per cell
         values = grad.eval(self.cells).reshape(-1, 3)
         return self.set_values(values)
 
 
-def solve_laplace(domain: Domain, origin: str, insertion: str, region: str = "all") -> fem.Function:
+def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Sequence[str] = "all") -> fem.Function:
     """phi in P1: -div grad phi = 0 on the region's cells, phi = 0 / 1 on the named surfaces, zero flux
-    elsewhere; dofs outside the region are held at 0 (they are not coupled to it)."""
+    elsewhere; dofs outside the region(s) are held at 0 (they are not coupled to it).
+
+    ``region``: "all", one region name or several. ValueError if a surface has no node in the region(s).
+    """
     msh = domain.mesh
     V = fem.FunctionSpace(msh, ("Lagrange", 1))
     phi, q = ufl.TrialFunction(V), ufl.TestFunction(V)
     dx = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags, metadata={"quadrature_degree": 1})
-    dx_region = dx if region == "all" else dx(domain.regions[region])
+    names = [region] if isinstance(region, str) else list(region)
+    if "all" in names:
+        names = ["all"]
+    dx_region = dx if names == ["all"] else dx(tuple(c for n in names for c in domain.regions[n]))
     a = fem.form(ufl.inner(ufl.grad(phi), ufl.grad(q)) * dx_region)
     L = fem.form(fem.Constant(msh, PETSc.ScalarType(0.0)) * q * dx_region)
     fdim = msh.topology.dim - 1
@@ -87,14 +103,19 @@ def solve_laplace(domain: Domain, origin: str, insertion: str, region: str = "al
     one.x.array[:] = 1.0
     bcs = [fem.dirichletbc(zero, fem.locate_dofs_topological(V, fdim, domain.boundary_facets(origin))),
            fem.dirichletbc(one, fem.locate_dofs_topological(V, fdim, domain.boundary_facets(insertion)))]
-    if region != "all":
-        inside = np.unique(V.dofmap.list.array.reshape(-1, 4)[domain.region_cells(region)])
-        num_local = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+    num_local = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+    inside = np.arange(num_local, dtype=np.int32)
+    if names != ["all"]:
+        cells = np.concatenate([domain.region_cells(n) for n in names])
+        inside = np.unique(V.dofmap.list.array.reshape(-1, 4)[cells])
         outside = np.setdiff1d(np.arange(num_local, dtype=np.int32), inside)
         bcs.append(fem.dirichletbc(zero, outside))
+    owned = V.dofmap.index_map.size_local
     for name, bc in ((origin, bcs[0]), (insertion, bcs[1])):
-        if msh.comm.allreduce(len(bc.dof_indices()[0]), op=MPI.SUM) == 0:
-            raise ValueError(f"fibre field: the surface {name!r} has no nodes")
+        dofs = bc.dof_indices()[0]
+        touching = np.intersect1d(dofs[dofs < owned], inside)
+        if msh.comm.allreduce(len(touching), op=MPI.SUM) == 0:
+            raise ValueError(f"the surface {name!r} has no node in region {' + '.join(names)}")
     A = fem_petsc.assemble_matrix(a, bcs=bcs)
     A.assemble()
     b = fem_petsc.assemble_vector(L)

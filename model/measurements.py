@@ -68,3 +68,30 @@ def reactions(problem: ElasticityProblem, residual: PETSc.Vec) -> dict[str, list
         total = comm.allreduce(force, op=MPI.SUM)
         out[entry.name] = (np.asarray(out.get(entry.name, np.zeros(3))) + total).tolist()
     return out
+
+
+class Volumes:
+    """Current volumes v_r = int_r J dX of every named region and of the whole body ("all").
+
+    ``reference`` holds the volumes at u = 0 (int_r 1 dX) and ``areas`` the reference area of every
+    named boundary (int_b 1 dA): the denominators of nominal stresses and volume changes.
+    """
+
+    def __init__(self, problem: ElasticityProblem) -> None:
+        import ufl
+
+        domain = problem.domain
+        self.comm = domain.mesh.comm
+        J = ufl.det(problem.F)
+        one = fem.Constant(domain.mesh, PETSc.ScalarType(1.0))
+        names = ["all", *sorted(domain.regions)]
+        self._forms = {n: fem.form(J * problem.region_measure(n)) for n in names}
+        self.reference = {n: self._sum(fem.form(one * problem.region_measure(n))) for n in names}
+        self.areas = {n: self._sum(fem.form(one * problem.boundary_measure(n))) for n in sorted(domain.boundaries)}
+
+    def _sum(self, form: fem.FormMetaClass) -> float:
+        return float(self.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
+
+    def current(self) -> dict[str, float]:
+        """{region: int_r J dX} at the current solution (all ranks)."""
+        return {n: self._sum(f) for n, f in self._forms.items()}

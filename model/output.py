@@ -4,7 +4,8 @@ Fields written each converged step:
 - ``u``: displacement, interpolated into P1 (the mesh's vertices) for output;
 - ``J``, ``cauchy_stress`` (sigma = J^-1 P F^T), ``von_mises`` (sqrt(3/2 s:s)): cell
   averages (integrals over each cell with the run's quadrature rule divided by its
-  volume, which works for quadrature-point state such as polar rotations too).
+  volume, which works for quadrature-point state such as polar rotations too);
+- the problem's per-cell input fields (``fibre_direction`` a0, ``activation`` alpha) when present.
 The VTU files (meshio) are written on rank 0 from the whole mesh gathered there;
 the PNG is rendered from the last VTU (model.render, in a subprocess).
 """
@@ -104,7 +105,7 @@ class ResultWriter:
             self.count += 1
             return
         self.u_out.interpolate(self.problem.displacement())
-        fields = self.averages.update()
+        fields = {**self.averages.update(), **self.problem.cell_fields}
         if self.xdmf is not None:
             self.xdmf.write_function(self.u_out, time)
             for f in fields.values():

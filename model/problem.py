@@ -92,6 +92,8 @@ class ElasticityProblem:
         self.strain_energy = 0
         self.stress_terms: list[tuple[ufl.core.expr.Expr, ufl.Measure]] = []
         self.extra_energies: list[ufl.Form] = []
+        #: per-cell input fields written with the results (fibre directions, activation), by name
+        self.cell_fields: dict[str, fem.Function] = {}
         for region, law in self.materials:
             self._add_material(region, law)
         self.dirichlet: list[DirichletBoundary] = []
@@ -125,10 +127,13 @@ class ElasticityProblem:
         self.stress_terms.append((P, dx))
 
     def add_dirichlet(self, name: str, components: Sequence[int], values: Sequence[ValueSource],
-                      load_dependent: Sequence[bool] | None = None) -> None:
+                      load_dependent: Sequence[bool] | None = None,
+                      points: Sequence[Sequence[float]] = ()) -> None:
         """u_i = lambda * value_i on boundary ``name`` for each listed component (constant or f(x)).
 
         A component marked load-dependent has u_i = f(x, lambda) instead (not scaled).
+        With ``points``, only the boundary's nodes at those points are constrained (a ValueError
+        names the first point that is not a node of the boundary).
         """
         load_dependent = load_dependent or [False] * len(components)
         facets = self.domain.boundary_facets(name)
@@ -138,6 +143,8 @@ class ElasticityProblem:
             sub = self.displacement_space.sub(comp)
             collapsed, _ = sub.collapse()
             dofs = fem.locate_dofs_topological((sub, collapsed), fdim, facets)
+            if len(points):
+                dofs = self._dofs_at_points(collapsed, dofs, points, name)
             g = fem.Function(collapsed)
             entry.of_load_factor.append(value if dependent else None)
             if dependent:
@@ -152,6 +159,23 @@ class ElasticityProblem:
             entry.bcs.append(fem.dirichletbc(g, dofs, sub))
         self.dirichlet.append(entry)
         self._forms = None
+
+    def _dofs_at_points(self, collapsed: fem.FunctionSpace, dofs: list[np.ndarray],
+                        points: Sequence[Sequence[float]], name: str) -> list[np.ndarray]:
+        """The entries of (dofs in V, dofs in the collapsed space) located at the given points."""
+        msh = self.domain.mesh
+        comm = msh.comm
+        x = collapsed.tabulate_dof_coordinates()[dofs[1]]
+        low = comm.allreduce(msh.geometry.x.min(axis=0), op=MPI.MIN)
+        high = comm.allreduce(msh.geometry.x.max(axis=0), op=MPI.MAX)
+        tol = 1e-8 * float(np.linalg.norm(high - low))
+        keep = np.zeros(len(x), dtype=bool)
+        for i, point in enumerate(points):
+            near = np.linalg.norm(x - np.asarray(point, dtype=np.float64), axis=1) <= tol
+            if comm.allreduce(int(near.sum()), op=MPI.SUM) == 0:
+                raise ValueError(f"point {i} {list(point)} is not a node of boundary {name!r}")
+            keep |= near
+        return [dofs[0][keep], dofs[1][keep]]
 
     def add_traction(self, name: str, traction: Sequence[float] | ufl.core.expr.Expr) -> None:
         """Dead traction t (per unit reference area) on boundary ``name``, scaled by lambda."""

@@ -16,7 +16,7 @@ from mpi4py import MPI
 
 from model.config import RunConfig
 from model.loadstepping import StepRecord, step_loads
-from model.measurements import reactions
+from model.measurements import Volumes, reactions
 from model.output import ResultWriter, write_json_atomic
 from model.problem import ElasticityProblem
 from model.setup import build
@@ -55,10 +55,13 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png)
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
+    volumes = Volumes(problem)
     summary: dict[str, Any] = {
         "dofs": imap.size_global * problem.space.dofmap.index_map_bs,
         "cells": msh.topology.index_map(msh.topology.dim).size_global,
         "ranks": comm.size,
+        "region_volumes": volumes.reference,
+        "boundary_areas": volumes.areas,
         "solver": {"method": config.solver.method, "tangent": config.solver.tangent},
         "wall_time_s": 0.0,
         "status": "running",
@@ -81,8 +84,11 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
             "snes_reason_name": r.reason_name,
             "residual_norm": r.residual_norm,
         }
+        if setup.activation is not None:
+            step["activation"] = setup.activation.values(record.load_factor)
         if r.converged:
             step["energy"] = problem.total_energy()
+            step["volumes"] = volumes.current()
             step["probes"] = setup.probes.evaluate(problem.displacement())
             residual = solver.unconstrained_residual()
             step["reactions"] = reactions(problem, residual)

@@ -12,13 +12,16 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 
 import forms
 import meshes
+from model.activation import ActivationField
 from model.config import ConfigError, MeshConfig, RunConfig
 from model.domain import Domain, build_domain, read_meshio
 from model.expressions import compile_expression, uses_load_factor
+from model.fibres import FibreField, solve_laplace
 from model.measurements import Probes
 from model.problem import ElasticityProblem
 from model.targets import TargetField
@@ -79,6 +82,63 @@ class Setup:
     problem: ElasticityProblem
     probes: Probes
     targets: list[TargetField]
+    fibres: fem.Function | None = None
+    activation: ActivationField | None = None
+
+
+def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
+    for i, m in enumerate(config.materials):
+        spec = m.fibres
+        if spec is None or spec.type != "laplace":
+            continue
+        for k in ("origin", "insertion"):
+            name = getattr(spec, k)
+            if name not in domain.boundaries:
+                raise ConfigError(f"material[{i}].fibres.{k}: no boundary named {name!r} in the mesh "
+                                  f"(boundaries: {', '.join(sorted(domain.boundaries)) or 'none'})")
+        for j, r in enumerate(spec.regions):
+            if r != "all" and r not in domain.regions:
+                raise ConfigError(f"material[{i}].fibres.regions[{j}]: no region named {r!r} in the mesh "
+                                  f"(regions: {', '.join(['all', *sorted(domain.regions)])})")
+
+
+def _fibre_fields(config: RunConfig, domain: Domain) -> fem.Function | None:
+    """One DG0 vector Function a0 for all fibre materials, each setting its region's cells."""
+    if not any(m.fibres is not None for m in config.materials):
+        return None
+    function = fem.Function(fem.VectorFunctionSpace(domain.mesh, ("DG", 0)), name="fibre_direction")
+    potentials: dict[tuple[str, str, tuple[str, ...]], fem.Function] = {}
+    for i, m in enumerate(config.materials):
+        spec = m.fibres
+        if spec is None:
+            continue
+        field = FibreField(domain, m.region, function=function)
+        key = f"material[{i}].fibres"
+        try:
+            if spec.type == "constant":
+                field.constant(spec.origin, spec.insertion)  # type: ignore[arg-type]
+            elif spec.type == "laplace":
+                regions = spec.regions or (m.region,)
+                which = (str(spec.origin), str(spec.insertion), tuple(regions))
+                if which not in potentials:
+                    try:
+                        potentials[which] = solve_laplace(domain, *which)
+                    except ValueError as err:
+                        raise ConfigError(f"{key}.regions: {err}; name the regions the fibres run through "
+                                          "(fibres.regions)") from None
+                field.laplace(which[0], which[1], potential=potentials[which])
+            else:
+                try:
+                    array = np.load(spec.file, allow_pickle=False)  # type: ignore[arg-type]
+                except (OSError, ValueError) as err:
+                    raise ConfigError(f"{key}.file: cannot read {spec.file}: {str(err).splitlines()[0]}") from None
+                field.from_cell_array(array)
+        except ValueError as err:
+            if isinstance(err, ConfigError):
+                raise
+            where = {"constant": "insertion", "laplace": "regions", "file": "file"}[spec.type]
+            raise ConfigError(f"{key}.{where}: {err}") from None
+    return function
 
 
 def _check_names(config: RunConfig, domain: Domain) -> None:
@@ -123,10 +183,20 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     if probes.missing:  # the same on every rank (reduced over ranks)
         i = [p.name for p in config.probes].index(probes.missing[0])
         raise ConfigError(f"probe[{i}].point: {list(config.probes[i].point)} is outside the mesh")
+    _check_fibre_names(config, domain)
     disc = config.discretization
+    fibres = _fibre_fields(config, domain)
+    activation = None
+    if any("alpha" in forms.FIELDS.get(m.law.name, ()) for m in config.materials):
+        activation = ActivationField(domain)
     materials, targets = [], []
     for i, m in enumerate(config.materials):
         law = m.law
+        if fibres is not None and "a0" in forms.FIELDS.get(law.name, ()):
+            law = dataclasses.replace(law, a0=fibres)
+        if activation is not None and "alpha" in forms.FIELDS.get(law.name, ()):
+            activation.add(m.region, m.activation)
+            law = dataclasses.replace(law, alpha=activation.function)
         if "S" in forms.FIELDS.get(law.name, ()):
             source = m.fields.get("S")
             key = "S_function" if callable(source) else "S_file" if np.ndim(source) == 3 else "S"
@@ -141,17 +211,26 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     for target in targets:
         if target.procedural:
             problem.add_load_hook(target.update)
-    for b in config.boundaries:
+    if fibres is not None:
+        problem.cell_fields["fibre_direction"] = fibres
+    if activation is not None:
+        problem.add_load_hook(activation.update)
+        problem.cell_fields["activation"] = activation.function
+    for i, b in enumerate(config.boundaries):
         if b.type == "displacement":
-            if b.value:
-                problem.add_dirichlet(b.on, b.components, b.value)
-            else:
-                problem.add_dirichlet(b.on, b.components, [compile_expression(e) for e in b.expression],
-                                      [uses_load_factor(e) for e in b.expression])
+            try:
+                if b.value:
+                    problem.add_dirichlet(b.on, b.components, b.value, points=b.points)
+                else:
+                    problem.add_dirichlet(b.on, b.components, [compile_expression(e) for e in b.expression],
+                                          [uses_load_factor(e) for e in b.expression], points=b.points)
+            except ValueError as err:  # a point that is not a node of the boundary
+                j = int(str(err).split()[1]) if str(err).startswith("point ") else 0
+                raise ConfigError(f"boundary[{i}].points[{j}]: {err}") from None
         elif b.type == "traction":
             problem.add_traction(b.on, b.value)
         else:
             problem.add_pressure(b.on, b.value[0])
     for f in config.body_forces:
         problem.add_body_force(f.region, f.value)
-    return Setup(domain, problem, probes, targets)
+    return Setup(domain, problem, probes, targets, fibres, activation)

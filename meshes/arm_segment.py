@@ -1,0 +1,222 @@
+"""Unstructured tetrahedral mesh of an arm segment: two fusiform muscles side by side in a cylinder of fat (gmsh OCC).
+
+Geometry (SI units, axis along z, ``L = length``, ``Lt = tendon_length``)::
+
+    fat        x^2 + y^2 <= R^2, z in [0, L], minus the two muscles
+    muscle a   on the axis x = -spacing / 2, y = 0
+    muscle b   on the axis x = +spacing / 2, y = 0
+
+Each muscle is built by :func:`meshes.fusiform.add_muscle`, exactly like :func:`meshes.fusiform.fusiform`
+with a belly of length ``L - 2 Lt``: cylindrical tendons of radius ``rt`` over ``z in [0, Lt]`` and
+``[L - Lt, L]``, and a lofted belly ``r(z) = rt + (rm - rt) sin(pi s)^2``, ``s = (z - Lt) / (L - 2 Lt)``
+in between (:func:`meshes.fusiform.belly_radius_at`).  The tendons' end disks lie on the fat's end
+faces.  All solids are fragmented together, so the interfaces are shared and the mesh is conforming.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+
+import gmsh
+
+from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, gmsh_session
+from meshes._validate import ParameterError, positive_float
+from meshes.data import MeshData, from_gmsh_model
+from meshes.fusiform import add_muscle
+
+__all__ = [
+    "ARM_SEGMENT_FACES",
+    "ARM_SEGMENT_REGIONS",
+    "CURVATURE_ELEMENTS",
+    "arm_segment",
+    "arm_segment_options",
+    "belly_volume",
+    "build_arm_segment_model",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Physical volume names (tags 1..5) of :func:`arm_segment`.
+ARM_SEGMENT_REGIONS = ("fat", "belly_a", "tendon_a", "belly_b", "tendon_b")
+#: Physical surface names (tags 1..7) of :func:`arm_segment`.
+ARM_SEGMENT_FACES = ("a_origin", "a_insertion", "b_origin", "b_insertion", "proximal", "distal", "skin")
+
+_GENERATOR = "arm_segment"
+
+
+def _end(z_center: float, length: float) -> str | None:
+    """``"origin"`` (z = 0), ``"insertion"`` (z = length) or None (lateral) from a face's centre of mass."""
+    tol = 1e-6 * length
+    if abs(z_center) < tol:
+        return "origin"
+    if abs(z_center - length) < tol:
+        return "insertion"
+    return None
+
+
+def _face_name(region: str, end: str | None) -> str:
+    """Name of an exterior face from the region that owns it and the end it lies on."""
+    if region == "fat":
+        return {"origin": "proximal", "insertion": "distal", None: "skin"}[end]
+    if region.startswith("tendon_") and end is not None:
+        return f"{region[-1]}_{end}"
+    raise RuntimeError(f"{_GENERATOR}: unexpected exterior face of {region} (end {end}): a muscle reaches the skin")
+
+
+def build_arm_segment_model(
+    length: float,
+    radius: float,
+    muscle_radius: float,
+    tendon_radius: float,
+    tendon_length: float,
+    spacing: float,
+) -> None:
+    """Create the fragmented arm-segment geometry and its physical groups in the current gmsh model."""
+    occ = gmsh.model.occ
+    fat = occ.addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, length, radius)
+    solids: dict[str, list[int]] = {}
+    for label, x0 in (("a", -0.5 * spacing), ("b", 0.5 * spacing)):
+        belly, origin, insertion = add_muscle(length - 2.0 * tendon_length, muscle_radius, tendon_radius,
+                                              tendon_length, x0)
+        solids[f"belly_{label}"] = [belly]
+        solids[f"tendon_{label}"] = [origin, insertion]
+    tools = [(3, tag) for name in ARM_SEGMENT_REGIONS[1:] for tag in solids[name]]
+    _, mapping = occ.fragment([(3, fat)], tools)
+    occ.synchronize()
+
+    # the fat's pieces include the muscles it overlaps: keep those that belong to no muscle solid
+    pieces = iter(mapping[1:])
+    volumes: dict[str, list[int]] = {}
+    for name in ARM_SEGMENT_REGIONS[1:]:
+        volumes[name] = sorted(tag for _ in solids[name] for dim, tag in next(pieces) if dim == 3)
+    in_muscles = {tag for name in ARM_SEGMENT_REGIONS[1:] for tag in volumes[name]}
+    volumes["fat"] = sorted(tag for dim, tag in mapping[0] if dim == 3 and tag not in in_muscles)
+    expected = {"fat": 1, "belly_a": 1, "tendon_a": 2, "belly_b": 1, "tendon_b": 2}
+    for name, count in expected.items():
+        if len(volumes[name]) != count:
+            raise RuntimeError(f"{_GENERATOR}: fragment gave {len(volumes[name])} volumes for {name}, not {count}")
+
+    owners: dict[int, list[str]] = {}
+    for name, tags in volumes.items():
+        for _, surface in gmsh.model.getBoundary([(3, t) for t in tags], combined=False, oriented=False):
+            owners.setdefault(surface, []).append(name)
+    faces: dict[str, list[int]] = {name: [] for name in ARM_SEGMENT_FACES}
+    for surface in sorted(s for s, names in owners.items() if len(names) == 1):
+        end = _end(occ.getCenterOfMass(2, surface)[2], length)
+        faces[_face_name(owners[surface][0], end)].append(surface)
+
+    for tag, name in enumerate(ARM_SEGMENT_REGIONS, start=1):
+        gmsh.model.addPhysicalGroup(3, volumes[name], tag)
+        gmsh.model.setPhysicalName(3, tag, name)
+    for tag, name in enumerate(ARM_SEGMENT_FACES, start=1):
+        if not faces[name]:
+            raise RuntimeError(f"{_GENERATOR}: no exterior surface classified as {name!r}")
+        gmsh.model.addPhysicalGroup(2, faces[name], tag)
+        gmsh.model.setPhysicalName(2, tag, name)
+
+
+def arm_segment_options(size: float) -> dict[str, float]:
+    """gmsh options used for maximum element size ``size`` (refined on curved surfaces)."""
+    return curved_size_options(size)
+
+
+def _check(length: float, radius: float, rm: float, rt: float, lt: float, spacing: float) -> None:
+    """Raise :class:`ParameterError` unless the muscles fit, apart, inside the fat and the tendons are shorter."""
+    if rt >= rm:
+        raise ParameterError(f"{_GENERATOR}: tendon_radius must be < muscle_radius ({rm!r}), got {rt!r}")
+    if 2.0 * lt >= length:
+        raise ParameterError(f"{_GENERATOR}: tendon_length must be < length / 2 ({0.5 * length!r}), got {lt!r}")
+    if spacing <= 2.0 * rm:
+        raise ParameterError(
+            f"{_GENERATOR}: spacing must be > 2 * muscle_radius ({2.0 * rm!r}) so that the muscles do not "
+            f"overlap, got {spacing!r}"
+        )
+    if 0.5 * spacing + rm >= radius:
+        raise ParameterError(
+            f"{_GENERATOR}: radius must be > spacing / 2 + muscle_radius ({0.5 * spacing + rm!r}) so that the "
+            f"muscles lie inside the fat, got {radius!r}"
+        )
+
+
+def arm_segment(
+    length: float = 0.12,
+    radius: float = 0.03,
+    muscle_radius: float = 0.011,
+    tendon_radius: float = 0.004,
+    tendon_length: float = 0.02,
+    spacing: float = 0.024,
+    size: float = 0.005,
+) -> MeshData:
+    """Mesh two fusiform muscles side by side inside a cylinder of fat (SI metres).
+
+    Parameters
+    ----------
+    length:
+        Length of the segment along z (the fat and each muscle span ``z in [0, length]``), > 0.
+    radius:
+        Radius of the fat cylinder, > 0 and > ``spacing / 2 + muscle_radius``.
+    muscle_radius:
+        Radius of each belly at its middle, > 0 and > ``tendon_radius``.
+    tendon_radius:
+        Radius of the tendons and of the bellies' ends, > 0.
+    tendon_length:
+        Length of each tendon, > 0 and < ``length / 2``.
+    spacing:
+        Distance between the muscles' axes ``x = -spacing / 2`` (muscle a) and
+        ``x = +spacing / 2`` (muscle b), > ``2 * muscle_radius``.
+    size:
+        Maximum element size, > 0; curved surfaces are refined to
+        :data:`CURVATURE_ELEMENTS` elements per 2 pi radians.
+
+    Returns
+    -------
+    MeshData
+        Volumes ``fat`` (1), ``belly_a`` (2), ``tendon_a`` (3, both tendons of muscle a),
+        ``belly_b`` (4) and ``tendon_b`` (5); faces ``a_origin`` (1, muscle a's tendon
+        disk at z=0), ``a_insertion`` (2, its disk at z=length), ``b_origin`` (3),
+        ``b_insertion`` (4), ``proximal`` (5, the rest of the face z=0: fat only),
+        ``distal`` (6, the rest of the face z=length) and ``skin`` (7, the lateral
+        surface of the fat).  The interfaces between volumes are shared but not named.
+
+    Raises
+    ------
+    ParameterError
+        If a parameter is not a positive number, or the muscles overlap, leave the
+        fat, or their tendons are not shorter than half the segment.
+    """
+    total = positive_float(_GENERATOR, "length", length)
+    r = positive_float(_GENERATOR, "radius", radius)
+    rm = positive_float(_GENERATOR, "muscle_radius", muscle_radius)
+    rt = positive_float(_GENERATOR, "tendon_radius", tendon_radius)
+    lt = positive_float(_GENERATOR, "tendon_length", tendon_length)
+    gap = positive_float(_GENERATOR, "spacing", spacing)
+    lc = positive_float(_GENERATOR, "size", size)
+    _check(total, r, rm, rt, lt, gap)
+    start = time.perf_counter()
+    with gmsh_session(arm_segment_options(lc), name=_GENERATOR):
+        build_arm_segment_model(total, r, rm, rt, lt, gap)
+        gmsh.model.mesh.generate(3)
+        mesh = from_gmsh_model(gmsh.model)
+    logger.info(
+        "arm_segment(length=%g, radius=%g, muscle_radius=%g, tendon_radius=%g, tendon_length=%g, spacing=%g, "
+        "size=%g): %d tets, %d points in %.2f s",
+        total,
+        r,
+        rm,
+        rt,
+        lt,
+        gap,
+        lc,
+        mesh.num_cells,
+        mesh.num_points,
+        time.perf_counter() - start,
+    )
+    return mesh
+
+
+def belly_volume(length: float, muscle_radius: float, tendon_radius: float, tendon_length: float) -> float:
+    """Exact volume of one belly: ``pi int r(z)^2 dz = pi Lb (rt^2 + rt d + 3 d^2 / 8)``, ``d = rm - rt``."""
+    d = muscle_radius - tendon_radius
+    return math.pi * (length - 2.0 * tendon_length) * (tendon_radius**2 + tendon_radius * d + 0.375 * d**2)
