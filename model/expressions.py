@@ -1,6 +1,7 @@
 """Scalar expressions of position x = (x[0], x[1], x[2]) and load factor t written in config files.
 
-Example: "0.1*x[0] + 0.05*x[1]", or a twist "x[1]*cos(t*pi/2) - x[2]*sin(t*pi/2) - x[1]".
+Example: "0.1*x[0] + 0.05*x[1]", a twist "x[1]*cos(t*pi/2) - x[2]*sin(t*pi/2) - x[1]", or a ramp
+that stops half-way "0.01*minimum(2*t, 1)".
 An expression that does not mention t is scaled by the load factor like a constant
 value; one that mentions t is evaluated at t = load factor and not scaled.
 
@@ -18,7 +19,8 @@ import numpy as np
 
 ALLOWED: dict[str, object] = {
     name: getattr(np, name)
-    for name in ("sin", "cos", "tan", "exp", "log", "sqrt", "abs", "arctan2", "sinh", "cosh", "tanh", "pi")
+    for name in ("sin", "cos", "tan", "exp", "log", "sqrt", "abs", "arctan2", "sinh", "cosh", "tanh", "pi",
+                 "minimum", "maximum")
 }
 _NODES = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Constant, ast.Name, ast.Load, ast.Subscript, ast.Call,
           ast.operator, ast.unaryop)

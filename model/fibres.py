@@ -96,7 +96,10 @@ def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Seq
     if "all" in names:
         names = ["all"]
     dx_region = dx if names == ["all"] else dx(tuple(c for n in names for c in domain.regions[n]))
-    a = fem.form(ufl.inner(ufl.grad(phi), ufl.grad(q)) * dx_region)
+    # the zero term over every cell puts the dofs outside the region into the sparsity pattern, so that
+    # their Dirichlet rows (phi = 0) get a diagonal entry
+    zero_outside = fem.Constant(msh, PETSc.ScalarType(0.0)) * phi * q * dx
+    a = fem.form(ufl.inner(ufl.grad(phi), ufl.grad(q)) * dx_region + zero_outside)
     L = fem.form(fem.Constant(msh, PETSc.ScalarType(0.0)) * q * dx_region)
     fdim = msh.topology.dim - 1
     zero, one = fem.Function(V), fem.Function(V)
