@@ -10,6 +10,7 @@ d / 2^max_cutbacks (so that alternating failures and successes cannot crawl on f
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -22,6 +23,7 @@ log = logging.getLogger(__name__)
 class StepRecord:
     load_factor: float
     result: SolveResult
+    seconds: float = 0.0  # wall time of the solve
 
 
 def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: float = 1.5,
@@ -38,8 +40,9 @@ def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: 
             target = 1.0
         saved = problem.solution.x.array.copy()
         problem.set_load_factor(target)
+        start = time.perf_counter()
         result = solver.solve()
-        record = StepRecord(target, result)
+        record = StepRecord(target, result, time.perf_counter() - start)
         if on_step is not None:
             on_step(record)
         if result.converged:

@@ -83,6 +83,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
             "snes_reason": r.reason,
             "snes_reason_name": r.reason_name,
             "residual_norm": r.residual_norm,
+            "solve_time_s": record.seconds,
         }
         if setup.activation is not None:
             step["activation"] = setup.activation.values(record.load_factor)
