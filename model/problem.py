@@ -166,8 +166,9 @@ class ElasticityProblem:
         msh = self.domain.mesh
         comm = msh.comm
         x = collapsed.tabulate_dof_coordinates()[dofs[1]]
-        low = comm.allreduce(msh.geometry.x.min(axis=0), op=MPI.MIN)
-        high = comm.allreduce(msh.geometry.x.max(axis=0), op=MPI.MAX)
+        low, high = np.empty(3), np.empty(3)
+        comm.Allreduce(msh.geometry.x.min(axis=0), low, op=MPI.MIN)
+        comm.Allreduce(msh.geometry.x.max(axis=0), high, op=MPI.MAX)
         tol = 1e-8 * float(np.linalg.norm(high - low))
         keep = np.zeros(len(x), dtype=bool)
         for i, point in enumerate(points):
