@@ -4,6 +4,9 @@ SNES owns its own vector x. Both callbacks copy x into the solution Function
 (and refresh quadrature-point state such as polar rotations) before assembling,
 so the Jacobian is always evaluated at the iterate SNES asks for.
 
+``bounds(xl, xu)``, when given, fills the lower and upper bound vectors before every solve
+(SNESVISetVariableBounds; for the VI solvers ``snes_type = "vinewtonrsls"``, e.g. contact).
+
 ``tangent = "projected"`` replaces the consistent tangent by its per-quadrature-point
 positive semidefinite projection (model.tangent, the "modified Newton" of Klar et al. 2020):
 the residual is unchanged, the Newton matrices are positive semidefinite, so CG with
@@ -17,6 +20,7 @@ from __future__ import annotations
 import ctypes
 import itertools
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from dolfinx import fem, la
@@ -129,7 +133,8 @@ class NewtonSolver:
     """
 
     def __init__(self, problem: ElasticityProblem, options: dict[str, str | int | float | bool] | None = None,
-                 prefix: str | None = None, tangent: str = "exact") -> None:
+                 prefix: str | None = None, tangent: str = "exact",
+                 bounds: Callable[[PETSc.Vec, PETSc.Vec], None] | None = None) -> None:
         if tangent not in TANGENTS:
             raise ValueError(f"solver.tangent: {tangent!r} is not one of {', '.join(TANGENTS)}")
         self.problem = problem
@@ -173,6 +178,10 @@ class NewtonSolver:
                               f"solver it configures (misspelt, or for another solver type)")
         self.unused_options: list[str] = []
         self._checked = False
+        # variable bounds (SNES VI solvers, e.g. contact): bounds(xl, xu) fills them before every solve
+        self.bounds = bounds
+        self.xl = self.x.duplicate() if bounds is not None else None
+        self.xu = self.x.duplicate() if bounds is not None else None
 
     def _copy_in(self, x: PETSc.Vec) -> None:
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
@@ -208,6 +217,9 @@ class NewtonSolver:
             self._copy_in(self.x)
             self.projected.invalidate()
             self.projected.update()
+        if self.bounds is not None:
+            self.bounds(self.xl, self.xu)
+            self.snes.setVariableBounds(self.xl, self.xu)
         self.snes.solve(None, self.x)
         if not self._checked:
             self._checked = True
@@ -246,5 +258,8 @@ class NewtonSolver:
         self.A.destroy()
         self.b.destroy()
         self.x.destroy()
+        for bound in (self.xl, self.xu):
+            if bound is not None:
+                bound.destroy()
         if self.near_null_space is not None:
             self.near_null_space.destroy()

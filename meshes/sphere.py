@@ -1,0 +1,103 @@
+"""Tetrahedral meshes of a ball (gmsh OpenCASCADE), optionally one octant, refined near the south pole.
+
+The octant is the part x >= 0, y >= 0, z <= 0 of the ball of radius R about the origin: with
+symmetry conditions on its three flat faces it models a whole sphere squeezed between two plates
+(Hertz contact at the south pole (0, 0, -R), a mesh vertex).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import gmsh
+
+from meshes._gmsh import gmsh_session
+from meshes._validate import ParameterError, positive_float
+from meshes.data import MeshData, from_gmsh_model
+
+__all__ = ["SPHERE_FACES", "OCTANT_FACES", "sphere"]
+
+logger = logging.getLogger(__name__)
+
+#: Boundary names of :func:`sphere` (``octant=False``).
+SPHERE_FACES = ("surface",)
+#: Boundary names of :func:`sphere` (``octant=True``): the flat faces x = 0, y = 0, z = 0 and the curved one.
+OCTANT_FACES = ("xmin", "ymin", "zmax", "surface")
+
+
+def _classify(centre: tuple[float, float, float], radius: float) -> str:
+    tol = 1e-6 * radius
+    x, y, z = centre
+    if abs(x) < tol:
+        return "xmin"
+    if abs(y) < tol:
+        return "ymin"
+    if abs(z) < tol:
+        return "zmax"
+    return "surface"
+
+
+def sphere(radius: float = 1.0, size: float = 0.25, octant: bool = False, pole_size: float | None = None,
+           pole_radius: float | None = None) -> MeshData:
+    """Mesh the ball |x| <= radius (or its octant x, y >= 0, z <= 0) with linear tetrahedra.
+
+    Parameters
+    ----------
+    radius:
+        Ball radius R, > 0.
+    size:
+        Maximum element size, > 0.
+    octant:
+        Mesh only the octant x >= 0, y >= 0, z <= 0 (faces ``xmin``, ``ymin``, ``zmax``, ``surface``).
+    pole_size, pole_radius:
+        Element size within ``pole_radius`` of the south pole (0, 0, -R), growing linearly (by
+        0.3 per unit distance) to ``size`` beyond; both or neither.
+
+    Returns
+    -------
+    MeshData
+        Volume ``body`` (tag 1); boundary ``surface`` (the sphere) and, for the octant, its flat
+        faces ``xmin`` (x = 0), ``ymin`` (y = 0), ``zmax`` (z = 0, the equator).
+    """
+    R = positive_float("sphere", "radius", radius)
+    h = positive_float("sphere", "size", size)
+    if (pole_size is None) != (pole_radius is None):
+        raise ParameterError("sphere: pole_size and pole_radius go together, got one of them")
+    refine = pole_size is not None
+    if refine:
+        hp = positive_float("sphere", "pole_size", pole_size)
+        rp = positive_float("sphere", "pole_radius", pole_radius)
+    start = time.perf_counter()
+    options = {"Mesh.MeshSizeMax": h, "Mesh.MeshSizeMin": 0.0, "Mesh.MeshSizeFromCurvature": 0,
+               "Mesh.MeshSizeExtendFromBoundary": 0 if refine else 1, "Mesh.MeshSizeFromPoints": 0}
+    with gmsh_session(options, name="sphere"):
+        occ = gmsh.model.occ
+        ball = occ.addSphere(0.0, 0.0, 0.0, R)
+        if octant:
+            box = occ.addBox(0.0, 0.0, -R, R, R, R)
+            result, _ = occ.intersect([(3, ball)], [(3, box)])
+            volume = result[0][1]
+        else:
+            volume = ball
+        occ.synchronize()
+        faces: dict[str, list[int]] = {}
+        for _, surface in gmsh.model.getBoundary([(3, volume)], combined=False, oriented=False):
+            name = _classify(occ.getCenterOfMass(2, surface), R) if octant else "surface"
+            faces.setdefault(name, []).append(surface)
+        gmsh.model.addPhysicalGroup(3, [volume], 1)
+        gmsh.model.setPhysicalName(3, 1, "body")
+        for tag, name in enumerate(OCTANT_FACES if octant else SPHERE_FACES, start=1):
+            gmsh.model.addPhysicalGroup(2, faces.get(name, []), tag)
+            gmsh.model.setPhysicalName(2, tag, name)
+        if refine:
+            field = gmsh.model.mesh.field
+            f = field.add("MathEval")
+            distance = f"Sqrt(x*x + y*y + (z + {R!r})*(z + {R!r}))"
+            field.setString(f, "F", f"Min({h!r}, {hp!r} + 0.3 * Max({distance} - {rp!r}, 0))")
+            field.setAsBackgroundMesh(f)
+        gmsh.model.mesh.generate(3)
+        mesh = from_gmsh_model(gmsh.model)
+    logger.info("sphere(radius=%g, size=%g, octant=%s, pole_size=%s): %d tets, %d points in %.2f s", R, h, octant,
+                pole_size, mesh.num_cells, mesh.num_points, time.perf_counter() - start)
+    return mesh
