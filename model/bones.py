@@ -271,7 +271,7 @@ class MovingFrame:
     def follow(self, problem: ElasticityProblem) -> None:
         """Set from the problem's load factor now and whenever it is set (a load hook)."""
         problem.add_load_hook(self.update)
-        self.update(float(problem.load_factor.value))
+        self.update(problem.time)
 
     def gap(self, obstacle: Obstacle, x: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
         """g(x) = d(Q^T (x - c)) in UFL, with the current Q, c as constants."""

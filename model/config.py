@@ -26,7 +26,7 @@ class ConfigError(ValueError):
     """A configuration error; the message names the offending key."""
 
 
-BOUNDARY_TYPES = ("displacement", "traction", "pressure")
+BOUNDARY_TYPES = ("displacement", "traction", "pressure", "attached", "sliding")
 FORMULATIONS = ("displacement", "mixed")
 
 
@@ -74,6 +74,8 @@ class MaterialConfig:
     fibres: FibreConfig | None = None
     #: activation alpha against time (load factor): (t_i, alpha_i), piecewise linear, constant beyond the ends
     activation: tuple[tuple[float, float], ...] = ()
+    #: mass density (kg/m^3), for [dynamics]
+    density: float | None = None
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,26 @@ class BoundaryConfig:
     expression: tuple[str, ...] = ()
     #: restrict a displacement condition to the boundary's nodes at these points (e.g. to stop rigid-body modes)
     points: tuple[tuple[float, ...], ...] = ()
+    #: attached / sliding: the bone's name; sliding: its penalty stiffness and quadrature degree
+    bone: str | None = None
+    penalty: float | None = None
+    quadrature_degree: int | str | None = None
+
+
+@dataclass(frozen=True)
+class BoneConfig:
+    """[[bone]]: a rigid body with a prescribed motion and, optionally, a shape (an analytic obstacle)."""
+
+    name: str
+    motion: Any  # model.bones.HingeMotion | TransformTable | Stationary
+    obstacle: Any = None  # forms.obstacles.Plane | Sphere | Capsule
+    shape: dict[str, Any] = field(default_factory=dict)  # the raw shape keys, for contacts on this bone
+
+
+@dataclass(frozen=True)
+class ContactConfig:
+    spec: Any  # model.contact.ContactSpec
+    bone: str | None = None
 
 
 @dataclass(frozen=True)
@@ -138,6 +160,9 @@ class RunConfig:
     probes: tuple[ProbeConfig, ...]
     output: OutputConfig
     solver: SolverConfig = field(default_factory=SolverConfig)
+    bones: tuple[BoneConfig, ...] = ()
+    contacts: tuple[ContactConfig, ...] = ()
+    dynamics: Any = None  # model.dynamics.DynamicsSpec
 
 
 # --- small checkers: each raises ConfigError naming the key ---------------------------------------
@@ -334,7 +359,12 @@ def _material(raw: dict[str, Any], key: str, base: Path = Path(".")) -> Material
         for k in field_keys:
             if k in raw:
                 _fail(f"{key}.{k}", f"only applies to laws with a shape target (shape_target, volume), not {law_name}")
-    params = {k: v for k, v in raw.items() if k not in ("region", "law", *field_keys, *fibre_keys)}
+    density = None
+    if "density" in raw:
+        density = _number(raw["density"], f"{key}.density")
+        if density <= 0:
+            _fail(f"{key}.density", f"{density} is out of range, must be > 0")
+    params = {k: v for k, v in raw.items() if k not in ("region", "law", "density", *field_keys, *fibre_keys)}
     if "isotropic" in params and law_name in ("muscle", "tendon"):
         from forms.muscle import ISOTROPIC
 
@@ -357,7 +387,7 @@ def _material(raw: dict[str, Any], key: str, base: Path = Path(".")) -> Material
         check_numbers()
         raise
     check_numbers()
-    return MaterialConfig(region, law, fields, fibres, activation)
+    return MaterialConfig(region, law, fields, fibres, activation, density)
 
 
 FIBRE_TYPES = ("constant", "laplace", "file")
@@ -431,13 +461,37 @@ def _parameter_key(key: str, message: str, params: dict[str, Any]) -> str:
 
 
 def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
-    _known(raw, {"on", "type", "components", "value", "expression", "points"}, key)
+    _known(raw, {"on", "type", "components", "value", "expression", "points", "bone", "penalty", "quadrature_degree"},
+           key)
     if "on" not in raw:
         _fail(f"{key}.on", "missing (the name of a boundary)")
     on = _string(raw["on"], f"{key}.on")
     if "type" not in raw:
         _fail(f"{key}.type", f"missing (one of {', '.join(BOUNDARY_TYPES)})")
     kind = _string(raw["type"], f"{key}.type", BOUNDARY_TYPES)
+    bone_keys = {"attached": ("bone",), "sliding": ("bone", "penalty", "quadrature_degree")}
+    for k in ("bone", "penalty", "quadrature_degree"):
+        if k in raw and k not in bone_keys.get(kind, ()):
+            types = [t for t, keys in bone_keys.items() if k in keys]
+            _fail(f"{key}.{k}", f"only applies to type = {' or '.join(repr(t) for t in types)}, not {kind!r}")
+    if kind in bone_keys:
+        for k in ("components", "value", "expression", "points"):
+            if k in raw:
+                _fail(f"{key}.{k}", f"does not apply to type = {kind!r} (the bone's motion gives the data)")
+        if "bone" not in raw:
+            _fail(f"{key}.bone", "missing (the name of a [[bone]])")
+        bone = _string(raw["bone"], f"{key}.bone")
+        if kind == "attached":
+            return BoundaryConfig(on, kind, (), bone=bone)
+        if "penalty" not in raw:
+            _fail(f"{key}.penalty", "missing (the sliding stiffness k > 0, per unit reference area and unit gap)")
+        penalty = _number(raw["penalty"], f"{key}.penalty")
+        if penalty <= 0:
+            _fail(f"{key}.penalty", f"{penalty} is out of range, must be > 0")
+        quadrature = raw.get("quadrature_degree")
+        if quadrature is not None and quadrature != "vertex":
+            quadrature = _integer(quadrature, f"{key}.quadrature_degree", 1)
+        return BoundaryConfig(on, kind, (), bone=bone, penalty=penalty, quadrature_degree=quadrature)
     if kind == "displacement":
         comps = raw.get("components", [0, 1, 2])
         if not isinstance(comps, list) or not comps:
@@ -564,7 +618,139 @@ def _output(raw: dict[str, Any]) -> OutputConfig:
     )
 
 
-SECTIONS = {"mesh", "discretization", "material", "boundary", "body_force", "loading", "solver", "probe", "output"}
+_SHAPE_KEYS = {"plane": ("point", "normal"), "sphere": ("centre", "radius"), "capsule": ("a", "b", "radius")}
+
+
+def _obstacle(raw: dict[str, Any], key: str) -> Any:
+    """An analytic obstacle from ``obstacle`` and its shape keys (plane: point, normal; sphere: centre,
+    radius; capsule: a, b, radius)."""
+    from forms.obstacles import Capsule, Plane, Sphere
+
+    kind = _string(raw["obstacle"], f"{key}.obstacle", tuple(_SHAPE_KEYS))
+    for k in _SHAPE_KEYS[kind]:
+        if k not in raw:
+            _fail(f"{key}.{k}", f"missing (obstacle = {kind!r} needs {', '.join(_SHAPE_KEYS[kind])})")
+    if kind == "plane":
+        normal = _vector(raw["normal"], f"{key}.normal")
+        if not any(normal):
+            _fail(f"{key}.normal", "must not be zero")
+        return Plane(_vector(raw["point"], f"{key}.point"), normal)  # type: ignore[arg-type]
+    radius = _number(raw["radius"], f"{key}.radius")
+    if radius <= 0:
+        _fail(f"{key}.radius", f"{radius} is out of range, must be > 0")
+    if kind == "sphere":
+        return Sphere(_vector(raw["centre"], f"{key}.centre"), radius)  # type: ignore[arg-type]
+    a, b = _vector(raw["a"], f"{key}.a"), _vector(raw["b"], f"{key}.b")
+    if a == b:
+        _fail(f"{key}.b", "must differ from a")
+    return Capsule(a, b, radius)  # type: ignore[arg-type]
+
+
+def _bone(raw: dict[str, Any], key: str) -> BoneConfig:
+    """[[bone]]: name; motion hinge = {axis, point, angles = [[t, degrees], ...]} or transform = {times,
+    rotations (rotation vectors, radians, or 3x3 matrices), translations}; none: the bone stays put;
+    optional shape: obstacle = plane | sphere | capsule with its keys (the shape at t = 0)."""
+    from model.bones import HingeMotion, Stationary, TransformTable
+
+    shape_keys = {k for keys in _SHAPE_KEYS.values() for k in keys}
+    _known(raw, {"name", "hinge", "transform", "obstacle", *shape_keys}, key)
+    if "name" not in raw:
+        _fail(f"{key}.name", "missing")
+    name = _string(raw["name"], f"{key}.name")
+    if "hinge" in raw and "transform" in raw:
+        _fail(f"{key}.transform", "give one of hinge or transform, not both")
+    motion: Any = Stationary()
+    if "hinge" in raw:
+        hinge = _table(raw["hinge"], f"{key}.hinge")
+        _known(hinge, {"axis", "point", "angles"}, f"{key}.hinge")
+        for k in ("axis", "point", "angles"):
+            if k not in hinge:
+                _fail(f"{key}.hinge.{k}", "missing")
+        axis = _vector(hinge["axis"], f"{key}.hinge.axis")
+        if not any(axis):
+            _fail(f"{key}.hinge.axis", "must not be zero")
+        point = _vector(hinge["point"], f"{key}.hinge.point")
+        angles = hinge["angles"]
+        if not isinstance(angles, list) or not angles:
+            _fail(f"{key}.hinge.angles", "must be a table [[t0, degrees0], [t1, degrees1], ...]")
+        table = [_vector(row, f"{key}.hinge.angles[{i}]", 2, " (time, degrees)") for i, row in enumerate(angles)]
+        for i in range(1, len(table)):
+            if table[i][0] <= table[i - 1][0]:
+                _fail(f"{key}.hinge.angles[{i}][0]", f"times must increase, got {table[i][0]} after {table[i - 1][0]}")
+        motion = HingeMotion(axis, point, table)  # type: ignore[arg-type]
+    elif "transform" in raw:
+        tr = _table(raw["transform"], f"{key}.transform")
+        _known(tr, {"times", "rotations", "translations"}, f"{key}.transform")
+        for k in ("times", "rotations", "translations"):
+            if k not in tr or not isinstance(tr[k], list) or not tr[k]:
+                _fail(f"{key}.transform.{k}", "missing or empty (one entry per time)")
+        times = _vector(tr["times"], f"{key}.transform.times", None)
+        for k in ("rotations", "translations"):
+            if len(tr[k]) != len(times):
+                _fail(f"{key}.transform.{k}", f"needs one entry per time ({len(times)}), got {len(tr[k])}")
+        translations = [_vector(c, f"{key}.transform.translations[{i}]") for i, c in enumerate(tr["translations"])]
+        rotations = []
+        for i, r in enumerate(tr["rotations"]):
+            if isinstance(r, list) and r and all(isinstance(row, list) for row in r):
+                rotations.append([_vector(row, f"{key}.transform.rotations[{i}][{j}]") for j, row in enumerate(r)])
+            else:
+                rotations.append(_vector(r, f"{key}.transform.rotations[{i}]", 3, " (a rotation vector in radians)"))
+        try:
+            motion = TransformTable(times, rotations, translations)
+        except ValueError as err:
+            _fail(f"{key}.transform", str(err).removeprefix("transform table: "))
+    obstacle, shape = None, {}
+    if "obstacle" in raw:
+        obstacle = _obstacle(raw, key)
+        shape = {k: raw[k] for k in ("obstacle", *_SHAPE_KEYS[raw["obstacle"]])}
+    else:
+        for k in shape_keys:
+            if k in raw:
+                _fail(f"{key}.{k}", "only applies with obstacle = \"plane\" | \"sphere\" | \"capsule\"")
+    return BoneConfig(name, motion, obstacle, shape)
+
+
+def _contact(raw: dict[str, Any], key: str, bones: dict[str, BoneConfig]) -> ContactConfig:
+    """[[contact]] (run-contract.md) plus ``bone``: the obstacle moves with that bone (and takes its shape
+    when the table gives no ``obstacle``)."""
+    from model.contact import parse_contact
+
+    raw = dict(_table(raw, key))
+    bone = raw.pop("bone", None)
+    if bone is not None:
+        bone = _string(bone, f"{key}.bone")
+        if bone not in bones:
+            _fail(f"{key}.bone", f"no [[bone]] named {bone!r} (bones: {', '.join(bones) or 'none'})")
+        if "obstacle" not in raw:
+            if not bones[bone].shape:
+                _fail(f"{key}.obstacle", f"missing, and bone {bone!r} has no shape")
+            raw.update(bones[bone].shape)
+    return ContactConfig(parse_contact(raw, key), bone)
+
+
+def _check_bones_and_dynamics(config: RunConfig) -> None:
+    """Bone names used by boundaries exist (sliding needs a shape); a dynamic run has every density."""
+    bones = {b.name: b for b in config.bones}
+    for i, b in enumerate(config.boundaries):
+        if b.bone is None:
+            continue
+        if b.bone not in bones:
+            _fail(f"boundary[{i}].bone", f"no [[bone]] named {b.bone!r} (bones: {', '.join(bones) or 'none'})")
+        if b.type == "sliding" and bones[b.bone].obstacle is None:
+            _fail(f"boundary[{i}].bone", f"bone {b.bone!r} has no shape to slide on (give it obstacle = ...)")
+    dynamics = config.dynamics
+    if dynamics is not None and dynamics.is_dynamic:
+        for i, m in enumerate(config.materials):
+            if m.density is None:
+                _fail(f"material[{i}].density", f"missing: scheme = \"{dynamics.scheme}\" needs a mass density")
+        if config.solver.method != "newton" or config.solver.tangent != "exact":
+            _fail("dynamics.scheme", "time integration needs solver.method = \"newton\" with tangent = \"exact\"")
+    if config.contacts and config.solver.method != "newton":
+        _fail("solver.method", "contact needs method = \"newton\"")
+
+
+SECTIONS = {"mesh", "discretization", "material", "boundary", "body_force", "loading", "solver", "probe", "output",
+            "bone", "contact", "dynamics"}
 
 
 def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
@@ -592,7 +778,17 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
     loading = _loading(_table(raw.get("loading", {}), "loading"))
     solver = _solver(_table(raw.get("solver", {}), "solver"))
     _check_solver(solver, materials, disc)
-    return RunConfig(
+    bones = tuple(_bone(b, f"bone[{i}]") for i, b in enumerate(_tables(raw.get("bone", []), "bone")))
+    names = [b.name for b in bones]
+    for i, n in enumerate(names):
+        if n in names[:i]:
+            _fail(f"bone[{i}].name", f"{n!r} is used twice")
+    contacts = tuple(_contact(c, f"contact[{i}]", dict(zip(names, bones)))
+                     for i, c in enumerate(_tables(raw.get("contact", []), "contact")))
+    from model.dynamics import parse_dynamics
+
+    dynamics = parse_dynamics(raw.get("dynamics", {}))
+    config = RunConfig(
         mesh=mesh,
         discretization=disc,
         materials=materials,
@@ -603,7 +799,12 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
         probes=probes,
         output=_output(_table(raw.get("output", {}), "output")),
         solver=solver,
+        bones=bones,
+        contacts=contacts,
+        dynamics=dynamics,
     )
+    _check_bones_and_dynamics(config)
+    return config
 
 
 def load(path: str | Path) -> RunConfig:

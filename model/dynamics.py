@@ -111,13 +111,23 @@ class DynamicsSpec:
     rayleigh: tuple[float, float] = (0.0, 0.0)
     #: generalized_alpha only: spectral radius at infinite frequency
     rho_infinity: float = 0.8
+    #: constant loads and Dirichlet values grow linearly to their full value at this time (None: end_time);
+    #: expressions, tables (activation, bones) and S_function see the time itself
+    load_ramp: float | None = None
+    #: u_0: "rest" (u = 0) or "equilibrium" (the quasi-static solution at t = 0, e.g. an activated muscle)
+    initial: str = "rest"
+
+    def load_scale(self, t: float) -> float:
+        """s(t) = min(t / load_ramp, 1): the factor of the scaled loads at time t."""
+        ramp = self.load_ramp if self.load_ramp is not None else self.end_time
+        return min(t / ramp, 1.0)
 
     @property
     def is_dynamic(self) -> bool:
         return self.scheme != "quasi_static"
 
 
-_DYNAMICS_KEYS = ("scheme", "dt", "end_time", "rayleigh", "rho_infinity")
+_DYNAMICS_KEYS = ("scheme", "dt", "end_time", "rayleigh", "rho_infinity", "load_ramp", "initial")
 
 
 def _config_error(key: str, message: str) -> None:
@@ -140,7 +150,9 @@ def parse_dynamics(raw: Any) -> DynamicsSpec:
     Keys: ``scheme`` ("quasi_static" (default), "backward_euler", "newmark", "generalized_alpha"),
     ``dt`` (> 0, required by a time-integration scheme), ``end_time`` (> 0, default 1),
     ``rayleigh = [a_M, b_K]`` (each >= 0, default [0, 0]), ``rho_infinity`` (generalized_alpha only,
-    in [0, 1], default 0.8). dt, end_time and rayleigh are refused with "quasi_static".
+    in [0, 1], default 0.8), ``load_ramp`` (> 0, default end_time: constant loads reach their full
+    value then), ``initial`` ("rest" (default): u_0 = 0; "equilibrium": u_0 is the quasi-static
+    solution at t = 0). These are refused with "quasi_static".
     Densities are per material (``density`` in [[material]]), not here.
     """
     if not isinstance(raw, dict):
@@ -156,7 +168,7 @@ def parse_dynamics(raw: Any) -> DynamicsSpec:
     if scheme not in CONFIG_SCHEMES:
         _config_error("scheme", f"{scheme!r} is not one of {', '.join(CONFIG_SCHEMES)}")
     if scheme == "quasi_static":
-        for key in ("dt", "end_time", "rayleigh", "rho_infinity"):
+        for key in ("dt", "end_time", "rayleigh", "rho_infinity", "load_ramp", "initial"):
             if key in raw:
                 _config_error(key, f"only applies to a time-integration scheme ({', '.join(SCHEMES)}), "
                               "not \"quasi_static\"")
@@ -183,7 +195,16 @@ def parse_dynamics(raw: Any) -> DynamicsSpec:
         rho_infinity = _config_number(raw["rho_infinity"], "rho_infinity")
         if not 0.0 <= rho_infinity <= 1.0:
             _config_error("rho_infinity", f"{rho_infinity} is out of range, must be in [0, 1]")
-    return DynamicsSpec(scheme, dt, end_time, (coefficients[0], coefficients[1]), rho_infinity)
+    load_ramp = None
+    if "load_ramp" in raw:
+        load_ramp = _config_number(raw["load_ramp"], "load_ramp")
+        if load_ramp <= 0.0:
+            _config_error("load_ramp", f"{load_ramp} is out of range, must be > 0")
+    initial = raw.get("initial", "rest")
+    if initial not in ("rest", "equilibrium"):
+        _config_error("initial", f"{initial!r} is not one of rest, equilibrium")
+    return DynamicsSpec(scheme, dt, end_time, (coefficients[0], coefficients[1]), rho_infinity, load_ramp,
+                        initial)
 
 
 # --- the time-discrete problem ----------------------------------------------------------------------

@@ -295,7 +295,7 @@ def run_stage1(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.
         writer.close()
     solver.destroy()
     if not ok:
-        raise RuntimeError(f"guided stage 1 failed after load factor {problem.load_factor.value:.6g}")
+        raise RuntimeError(f"guided stage 1 failed after load factor {problem.time:.6g}")
     stage.wall_time_s = time.perf_counter() - start
     return stage
 

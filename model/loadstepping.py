@@ -32,7 +32,7 @@ def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: 
     problem = solver.problem
     nominal = 1.0 / steps
     increment = nominal
-    current = float(problem.load_factor.value)
+    current = float(problem.time)
     cutbacks = 0
     while current < 1.0 - 1e-12:
         target = min(current + increment, 1.0)

@@ -81,6 +81,11 @@ class ElasticityProblem:
             self.u, self.p = self.solution, None
             self.v, self.q = ufl.TestFunction(self.space), None
         self.load_factor = fem.Constant(msh, PETSc.ScalarType(0.0))
+        #: the time t of the last set_load_factor (quasi-static: the load factor itself)
+        self.time = 0.0
+        #: s(t), the factor of scaled loads and Dirichlet values at time t (quasi-static: s = t; a dynamic
+        #: run ramps them over its ramp time)
+        self.load_scale: Callable[[float], float] = lambda t: t
         metadata = {"quadrature_degree": quadrature_degree}
         self.dx = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags, metadata=metadata)
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags, metadata=metadata)
@@ -148,7 +153,7 @@ class ElasticityProblem:
             g = fem.Function(collapsed)
             entry.of_load_factor.append(value if dependent else None)
             if dependent:
-                g.interpolate(lambda x, f=value: f(x, float(self.load_factor.value)))
+                g.interpolate(lambda x, f=value: f(x, self.time))
             elif callable(value):
                 g.interpolate(lambda x, f=value: f(x))
             else:
@@ -242,8 +247,12 @@ class ElasticityProblem:
         return [bc for entry in self.dirichlet for bc in entry.bcs]
 
     def set_load_factor(self, value: float) -> None:
-        """lambda <- value: scales loads and Dirichlet values, runs the load hooks (no recompilation)."""
-        self.load_factor.value = value
+        """t <- value: scaled loads and Dirichlet values get s(t) (load_scale; s = t unless a dynamic run
+        ramps them), expressions f(x, t) and the load hooks (activation, bones, targets) get t.
+        Nothing recompiles."""
+        self.time = float(value)
+        scale = float(self.load_scale(self.time))
+        self.load_factor.value = scale
         for hook in self.load_hooks:
             hook(value)
         if self.load_hooks:
@@ -251,7 +260,7 @@ class ElasticityProblem:
         for entry in self.dirichlet:
             for g, ref, f in zip(entry.values, entry.reference, entry.of_load_factor):
                 if f is None:
-                    g.x.array[:] = value * ref
+                    g.x.array[:] = scale * ref
                 else:
                     g.interpolate(lambda x, f=f: f(x, value))
 

@@ -1,8 +1,13 @@
-"""One run: configuration -> set-up -> load steps (SNES) -> summary.json, XDMF, VTU, PNG.
+"""One run: configuration -> set-up -> load steps or time steps (SNES) -> summary.json, XDMF, VTU, PNG.
 
 summary.json is rewritten after every attempted step, so a failed run keeps
-what it did. Each converged step records probes, reactions and the strain energy;
-a failed attempt records its SNES reason and is followed by a cut-back.
+what it did. Each converged step records probes, reactions and the strain energy
+(plus contact, sliding and, in a dynamic run, time and kinetic energy); a failed
+attempt records its SNES reason and is followed by a cut-back.
+
+Quasi-static runs step the load factor 0 -> 1 (model.loadstepping). A [dynamics] scheme
+integrates in time instead (model.dynamics): the "load factor" passed to expressions, activation
+curves and bone motions is the time t, and constant loads are scaled by min(t / load_ramp, 1).
 """
 
 from __future__ import annotations
@@ -15,11 +20,11 @@ from typing import Any
 from mpi4py import MPI
 
 from model.config import RunConfig
-from model.loadstepping import StepRecord, step_loads
+from model.loadstepping import step_loads
 from model.measurements import Volumes, reactions
 from model.output import ResultWriter, write_json_atomic
 from model.problem import ElasticityProblem
-from model.setup import build
+from model.setup import Setup, build
 from model.solver import NewtonSolver
 
 log = logging.getLogger(__name__)
@@ -29,8 +34,9 @@ class SolveFailed(RuntimeError):
     """The load stepping gave up; the message holds the last SNES reason."""
 
 
-def make_solver(problem: ElasticityProblem, config: RunConfig) -> Any:
-    """The solver [solver] asks for: NewtonSolver (exact or projected tangent) or ProjectiveDynamicsSolver."""
+def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None) -> Any:
+    """The solver [solver] asks for: NewtonSolver (exact or projected tangent), ProjectiveDynamicsSolver,
+    or, with contacts, model.contact's VI / Uzawa solvers (same interface)."""
     solver = config.solver
     if solver.method == "projective_dynamics":
         from model.projective_dynamics import ProjectiveDynamicsSolver
@@ -38,7 +44,39 @@ def make_solver(problem: ElasticityProblem, config: RunConfig) -> Any:
         options = {**config.petsc_options, "pd_max_iterations": solver.pd_max_iterations,
                    "pd_rtol": solver.pd_rtol, "pd_atol": solver.pd_atol}
         return ProjectiveDynamicsSolver(problem, options)
+    if contacts:
+        from model.contact import make_contact_solver
+
+        return make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent)
     return NewtonSolver(problem, config.petsc_options, tangent=solver.tangent)
+
+
+def _dynamics(setup: Setup, config: RunConfig) -> Any:
+    """The time integrator of a dynamic run (before the solver: it adds inertia and damping terms)."""
+    from model.dynamics import Dynamics
+
+    spec = config.dynamics
+    problem = setup.problem
+    density = {m.region: m.density for m in config.materials}
+    problem.load_scale = spec.load_scale
+    dynamics = Dynamics(problem, density if "all" not in density else density["all"], spec.scheme,
+                        spec.rayleigh, spec.dt, rho_infinity=spec.rho_infinity)
+    return dynamics
+
+
+def _initial_equilibrium(setup: Setup, config: RunConfig) -> None:
+    """u_0 of a dynamic run = the quasi-static solution at t = 0 (one Newton solve, before inertia is added)."""
+    problem = setup.problem
+    problem.load_scale = config.dynamics.load_scale
+    problem.set_load_factor(0.0)
+    solver = make_solver(problem, config, setup.contacts)
+    result = solver.solve()
+    solver.destroy()
+    problem._forms = None  # the dynamic run compiles its own forms (inertia and damping added)
+    if not result.converged:
+        raise SolveFailed(f"the initial equilibrium (dynamics.initial = \"equilibrium\") failed: SNES reason "
+                          f"{result.reason} ({result.reason_name})")
+    log.info("initial equilibrium: %d Newton iterations", result.iterations)
 
 
 def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
@@ -51,7 +89,11 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
     problem = setup.problem
-    solver = make_solver(problem, config)
+    dynamic = config.dynamics is not None and config.dynamics.is_dynamic
+    if dynamic and config.dynamics.initial == "equilibrium":
+        _initial_equilibrium(setup, config)
+    dynamics = _dynamics(setup, config) if dynamic else None
+    solver = make_solver(problem, config, setup.contacts)
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png)
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
@@ -67,58 +109,85 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "status": "running",
         "steps": [],
     }
+    if dynamic:
+        spec = config.dynamics
+        summary["dynamics"] = {"scheme": spec.scheme, "dt": spec.dt, "end_time": spec.end_time,
+                               "rayleigh": list(spec.rayleigh)}
 
     def save() -> None:
         summary["wall_time_s"] = time.perf_counter() - start
         if comm.rank == 0:
             write_json_atomic(directory / "summary.json", summary)
 
-    def on_step(record: StepRecord) -> None:
-        r = record.result
+    def record_step(t: float, r: Any, extra: dict[str, Any]) -> None:
         step: dict[str, Any] = {
-            "load_factor": record.load_factor,
+            "load_factor": float(problem.load_factor.value) if dynamic else t,
+            **extra,
             "newton_iterations": r.iterations,
             "linear_iterations": r.linear_iterations,
             "converged": r.converged,
             "snes_reason": r.reason,
             "snes_reason_name": r.reason_name,
             "residual_norm": r.residual_norm,
-            "solve_time_s": record.seconds,
         }
         if setup.activation is not None:
-            step["activation"] = setup.activation.values(record.load_factor)
+            step["activation"] = setup.activation.values(t)
         if r.converged:
             step["energy"] = problem.total_energy()
+            if dynamics is not None:
+                step["kinetic_energy"] = dynamics.kinetic_energy()
             step["volumes"] = volumes.current()
             step["probes"] = setup.probes.evaluate(problem.displacement())
             residual = solver.unconstrained_residual()
             step["reactions"] = reactions(problem, residual)
             residual.destroy()
-            writer.write_step(record.load_factor)
+            if setup.contacts:
+                from model.contact import contact_report
+
+                step["contact"] = contact_report(setup.contacts)
+            if setup.sliding:
+                step["sliding"] = {c.surface: {"max_gap": c.max_gap(), "force": c.force()} for c in setup.sliding}
+            writer.write_step(t)
         summary["steps"].append(step)
         save()
         if comm.rank == 0:
             n = len(summary["steps"])
             status = "converged" if r.converged else f"FAILED ({r.reason_name}), cutting back"
-            log.info("step %3d  load %.4f  newton %2d  |R| %.3e  %s", n, record.load_factor, r.iterations,
-                     r.residual_norm, status)
+            what = "t" if dynamic else "load"
+            log.info("step %3d  %s %.4f  newton %2d  |R| %.3e  %s", n, what, t, r.iterations, r.residual_norm,
+                     status)
 
-    problem.set_load_factor(0.0)
-    save()
-    ok = step_loads(solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth, on_step)
+    if dynamic:
+        from model.dynamics import step_time
+
+        problem.set_load_factor(0.0)
+        dynamics.initialize(time=0.0, load_factor=0.0)
+        save()
+        spec = config.dynamics
+        ok = step_time(solver, dynamics, spec.end_time, spec.dt,
+                       lambda rec: record_step(rec.time, rec.result, {"time": rec.time, "dt": rec.dt}),
+                       max_cutbacks=config.loading.max_cutbacks, growth=config.loading.growth)
+    else:
+        problem.set_load_factor(0.0)
+        save()
+        ok = step_loads(solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth,
+                        lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds}))
     summary["status"] = "completed" if ok else "failed"
     unused = getattr(solver, "unused_options", [])
     if unused:
         summary["unused_petsc_options"] = unused
-    png = writer.write_png(f"load factor {problem.load_factor.value:.3g}")
+    what = "t" if dynamic else "load factor"
+    png = writer.write_png(f"{what} {problem.time:.3g}")
     if png is not None:
         summary["png"] = png.name
     writer.close()
     save()
     solver.destroy()
+    if dynamics is not None:
+        dynamics.destroy()
     if not ok:
         last = summary["steps"][-1]
-        raise SolveFailed(f"SNES failed at load factor {last['load_factor']:.6g}: reason {last['snes_reason']} "
-                          f"({last['snes_reason_name']}); results up to load factor "
-                          f"{problem.load_factor.value:.6g} are in {directory}")
+        raise SolveFailed(f"SNES failed at {what} {last.get('time', last['load_factor']):.6g}: reason "
+                          f"{last['snes_reason']} ({last['snes_reason_name']}); results up to {what} "
+                          f"{problem.time:.6g} are in {directory}")
     return summary

@@ -9,7 +9,8 @@ raise ConfigError naming the key, before any solve starts.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from dolfinx import fem
@@ -84,6 +85,8 @@ class Setup:
     targets: list[TargetField]
     fibres: fem.Function | None = None
     activation: ActivationField | None = None
+    contacts: list[Any] = field(default_factory=list)  # model.contact objects
+    sliding: list[Any] = field(default_factory=list)  # model.bones.SlidingConstraint
 
 
 def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
@@ -216,8 +219,20 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     if activation is not None:
         problem.add_load_hook(activation.update)
         problem.cell_fields["activation"] = activation.function
+    bones = {b.name: b for b in config.bones}
+    sliding = []
     for i, b in enumerate(config.boundaries):
-        if b.type == "displacement":
+        if b.type == "attached":
+            from model.bones import attach
+
+            attach(problem, b.on, bones[b.bone].motion)  # type: ignore[index]
+        elif b.type == "sliding":
+            from model.bones import add_sliding
+
+            bone = bones[b.bone]  # type: ignore[index]
+            sliding.append(add_sliding(problem, b.on, bone.obstacle, b.penalty, bone.motion,  # type: ignore[arg-type]
+                                       b.quadrature_degree))
+        elif b.type == "displacement":
             try:
                 if b.value:
                     problem.add_dirichlet(b.on, b.components, b.value, points=b.points)
@@ -233,4 +248,11 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
             problem.add_pressure(b.on, b.value[0])
     for f in config.body_forces:
         problem.add_body_force(f.region, f.value)
-    return Setup(domain, problem, probes, targets, fibres, activation)
+    contacts = []
+    if config.contacts:
+        from model.contact import build_contact
+
+        for i, c in enumerate(config.contacts):
+            motion = bones[c.bone].motion if c.bone is not None else None
+            contacts.append(build_contact(problem, c.spec, motion, key=f"contact[{i}]"))
+    return Setup(domain, problem, probes, targets, fibres, activation, contacts, sliding)
