@@ -65,18 +65,42 @@ def _dynamics(setup: Setup, config: RunConfig) -> Any:
 
 
 def _initial_equilibrium(setup: Setup, config: RunConfig) -> None:
-    """u_0 of a dynamic run = the quasi-static solution at t = 0 (one Newton solve, before inertia is added)."""
+    """u_0 of a dynamic run = the quasi-static solution at t = 0 (before inertia is added to the forms).
+
+    Reached by continuation: the activation goes from 0 to its t = 0 values in loading.steps steps,
+    cut back on failure (a muscle activated at once from rest would invert elements in Newton's
+    first iterate).
+    """
     problem = setup.problem
     problem.load_scale = config.dynamics.load_scale
     problem.set_load_factor(0.0)
+    activation = setup.activation
+    full = activation.function.x.array.copy() if activation is not None else None
     solver = make_solver(problem, config, setup.contacts)
-    result = solver.solve()
+    nominal = 1.0 / config.loading.steps
+    increment, current, cutbacks, result = nominal, 0.0, 0, None
+    while current < 1.0 - 1e-12:
+        target = min(current + increment, 1.0)
+        saved = problem.solution.x.array.copy()
+        if activation is not None:
+            activation.function.x.array[:] = target * full
+        problem.invalidate_state()
+        result = solver.solve()
+        if result.converged:
+            current, cutbacks = target, 0
+            increment = min(increment * config.loading.growth, nominal)
+            continue
+        problem.solution.x.array[:] = saved
+        cutbacks += 1
+        increment *= 0.5
+        if cutbacks > config.loading.max_cutbacks:
+            break
     solver.destroy()
     problem._forms = None  # the dynamic run compiles its own forms (inertia and damping added)
-    if not result.converged:
-        raise SolveFailed(f"the initial equilibrium (dynamics.initial = \"equilibrium\") failed: SNES reason "
-                          f"{result.reason} ({result.reason_name})")
-    log.info("initial equilibrium: %d Newton iterations", result.iterations)
+    if result is None or current < 1.0 - 1e-12:
+        raise SolveFailed(f"the initial equilibrium (dynamics.initial = \"equilibrium\") failed at activation "
+                          f"fraction {target:.4g}: SNES reason {result.reason} ({result.reason_name})")
+    log.info("initial equilibrium reached (activation continuation)")
 
 
 def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
