@@ -16,6 +16,7 @@ fusiform    belly tendon_origin tendon_insertion              origin insertion s
 trunk       trunk                                             base top bark
 arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_insertion b_origin b_insertion
                                                               proximal distal skin
+sphere      body                                              surface (octant: xmin ymin zmax surface)
 =========== ================================================ =======================
 """
 
@@ -32,6 +33,7 @@ from meshes.cook import cook
 from meshes.cylinder import cylinder
 from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
 from meshes.fusiform import fusiform
+from meshes.sphere import sphere
 from meshes.trunk import trunk
 
 __all__ = [
@@ -47,6 +49,7 @@ __all__ = [
     "generate",
     "generator_parameters",
     "read_msh",
+    "sphere",
     "trunk",
     "write_msh",
 ]
@@ -57,6 +60,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "cylinder": cylinder,
     "cook": cook,
     "fusiform": fusiform,
+    "sphere": sphere,
     "trunk": trunk,
     "arm_segment": arm_segment,
 }
