@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import forms
-from model.config import ConfigError, parse
 from model.verify import reference
 
 
@@ -91,12 +90,3 @@ def test_stvk_isotropic_part_and_defaults() -> None:
 def test_bad_muscle_parameters(params: dict, key: str) -> None:
     with pytest.raises(forms.ParameterError, match=key):
         forms.make_law("muscle", **params)
-
-
-def test_configuration_files_refuse_muscle_until_fibre_fields_exist() -> None:
-    from conftest import example
-
-    raw = example("uniaxial")
-    raw["material"] = [{"region": "all", "law": "muscle"}]
-    with pytest.raises(ConfigError, match=r"^material\[0\]\.law: muscle needs fibre directions"):
-        parse(raw)
