@@ -508,7 +508,7 @@ class ContactSpec:
     augmented: bool = False
     tolerance: float = 1e-8
     max_uzawa: int = 25
-    quadrature_degree: int | None = None
+    quadrature_degree: int | str | None = None  # or "vertex": nodal quadrature, where the gaps are measured
 
 
 _KEYS = {"plane": ("point", "normal"), "sphere": ("centre", "radius"), "capsule": ("a", "b", "radius")}
@@ -630,8 +630,9 @@ def parse_contact(raw: dict[str, Any], key: str) -> ContactSpec:
     if max_uzawa < 1:
         fail("max_uzawa", f"{max_uzawa} is out of range, must be >= 1")
     quadrature = raw.get("quadrature_degree")
-    if quadrature is not None and (isinstance(quadrature, bool) or not isinstance(quadrature, int) or quadrature < 1):
-        fail("quadrature_degree", f"must be an integer >= 1, got {quadrature!r}")
+    if quadrature is not None and quadrature != "vertex" and (
+            isinstance(quadrature, bool) or not isinstance(quadrature, int) or quadrature < 1):
+        fail("quadrature_degree", f"must be an integer >= 1 or \"vertex\", got {quadrature!r}")
     return ContactSpec(raw["surface"], obstacle, method, k, augmented, tolerance, max_uzawa, quadrature)
 
 
