@@ -41,6 +41,41 @@ def deformation_gradients(points: Any, cells: Any, u: Any) -> Any:
     return Ds @ np.linalg.inv(Dm)
 
 
+def cell_fibre_state(mesh: Any) -> dict[str, Any]:
+    """Per tetrahedron of a result VTU (meshio.Mesh with point data u and cell data fibre_direction):
+    reference ``volume`` and ``centroid``, ``F``, ``J``, ``Fa`` = F a0 and the isochoric fibre stretch
+    ``fibre_stretch`` = J^(-1/3) |F a0|."""
+    import numpy as np
+
+    tets = mesh.cells_dict["tetra"]
+    X = mesh.points[tets]
+    F = deformation_gradients(mesh.points, tets, mesh.point_data["u"])
+    J = np.linalg.det(F)
+    Fa = np.einsum("nij,nj->ni", F, mesh.cell_data["fibre_direction"][0])
+    return {"volume": np.abs(np.linalg.det(X[:, 1:] - X[:, :1])) / 6.0, "centroid": X.mean(axis=1), "F": F, "J": J,
+            "Fa": Fa, "fibre_stretch": J ** (-1.0 / 3.0) * np.linalg.norm(Fa, axis=1)}
+
+
+def surface_cut(points, u, tets, axis, value):
+    """Where the plane x[axis] = value cuts the boundary triangles of the tetrahedra: reference points and u."""
+    import numpy as np
+
+    faces = np.sort(tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3), axis=1)
+    unique, count = np.unique(faces, axis=0, return_counts=True)
+    triangles = unique[count == 1]
+    d = points[triangles, axis] - value
+    crossing = triangles[(d.min(axis=1) < 0) & (d.max(axis=1) > 0)]
+    cut_points, cut_u = [], []
+    for tri in crossing:
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            di, dj = points[tri[i], axis] - value, points[tri[j], axis] - value
+            if di * dj < 0:
+                s = di / (di - dj)
+                cut_points.append(points[tri[i]] + s * (points[tri[j]] - points[tri[i]]))
+                cut_u.append(u[tri[i]] + s * (u[tri[j]] - u[tri[i]]))
+    return np.array(cut_points), np.array(cut_u)
+
+
 def small_png(source: Path, target: Path, limit: int = 280_000) -> None:
     """A copy of a PNG for docs/: optimised RGB, or with a 256-colour palette if that is over ``limit`` bytes."""
     from PIL import Image

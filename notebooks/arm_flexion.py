@@ -67,7 +67,7 @@ except ImportError:  # plots are optional
     plt = None
 
 import meshio  # noqa: E402
-from _pictures import deformation_gradients, render, small_png  # noqa: E402
+from _pictures import cell_fibre_state, render, small_png, surface_cut  # noqa: E402
 
 from model.bones import HingeMotion  # noqa: E402
 from model.config import parse  # noqa: E402
@@ -190,13 +190,8 @@ if plt is not None:
 # %%
 last = meshio.read(OUT / f"step_{len(steps):04d}.vtu")
 tets = last.cells_dict["tetra"]
-X = last.points[tets]
-cell_volume = np.abs(np.linalg.det(X[:, 1:] - X[:, :1])) / 6.0
-centroid = X.mean(axis=1)
-F = deformation_gradients(last.points, tets, last.point_data["u"])
-J = np.linalg.det(F)
-fibre_stretch = J ** (-1.0 / 3.0) * np.linalg.norm(np.einsum("nij,nj->ni", F, last.cell_data["fibre_direction"][0]),
-                                                   axis=1)
+state = cell_fibre_state(last)
+cell_volume, centroid, J, fibre_stretch = (state[k] for k in ("volume", "centroid", "J", "fibre_stretch"))
 belly = last.cell_data["activation"][0][:, 0] > 0
 print(f"{'z (cm)':>7s} {'part':>7s} {'fibre stretch':>14s}")
 for lo in np.arange(0.0, length0 - 1e-9, 0.01):
@@ -223,22 +218,6 @@ print(f"middle of the belly: fibre stretch {np.average(fibre_stretch[middle], we
 # front to the right; crosses: the centres of the origin and insertion disks.
 
 # %%
-def surface_cut(points, u, tets, axis, value):
-    """Where the plane x[axis] = value cuts the boundary triangles of the tetrahedra: reference points and u."""
-    faces = np.sort(tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3), axis=1)
-    unique, count = np.unique(faces, axis=0, return_counts=True)
-    triangles = unique[count == 1]
-    d = points[triangles, axis] - value
-    crossing = triangles[(d.min(axis=1) < 0) & (d.max(axis=1) > 0)]
-    cut_points, cut_u = [], []
-    for tri in crossing:
-        for i, j in ((0, 1), (1, 2), (2, 0)):
-            di, dj = points[tri[i], axis] - value, points[tri[j], axis] - value
-            if di * dj < 0:
-                s = di / (di - dj)
-                cut_points.append(points[tri[i]] + s * (points[tri[j]] - points[tri[i]]))
-                cut_u.append(u[tri[i]] + s * (u[tri[j]] - u[tri[i]]))
-    return np.array(cut_points), np.array(cut_u)
 
 
 def forearm_point(X):

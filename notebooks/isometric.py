@@ -74,7 +74,7 @@ except ImportError:  # plots are optional
     plt = None
 
 import meshio  # noqa: E402
-from _pictures import deformation_gradients, render, small_png  # noqa: E402
+from _pictures import cell_fibre_state, render, small_png, surface_cut  # noqa: E402
 
 from model.config import parse  # noqa: E402
 from model.muscle_experiments import active_stress, isometric_curves  # noqa: E402
@@ -151,14 +151,8 @@ if plt is not None:
 # %%
 data = meshio.read(OUT / f"step_{len(steps):04d}.vtu")
 tets = data.cells_dict["tetra"]
-X = data.points[tets]
-volume = np.abs(np.linalg.det(X[:, 1:] - X[:, :1])) / 6.0
-centroid = X.mean(axis=1)
-F = deformation_gradients(data.points, tets, data.point_data["u"])
-J = np.linalg.det(F)
-a0 = data.cell_data["fibre_direction"][0]
-Fa = np.einsum("nij,nj->ni", F, a0)
-fibre_stretch = J ** (-1.0 / 3.0) * np.linalg.norm(Fa, axis=1)
+state = cell_fibre_state(data)
+volume, centroid, Fa, fibre_stretch = (state[k] for k in ("volume", "centroid", "Fa", "fibre_stretch"))
 a = Fa / np.linalg.norm(Fa, axis=1)[:, None]
 sigma = data.cell_data["cauchy_stress"][0].reshape(-1, 3, 3)
 fibre_stress = np.einsum("ni,nij,nj->n", a, sigma, a)
@@ -219,22 +213,6 @@ if plt is not None:
 # reference curve and the deformed one, and the radial displacement of the surface along the axis.
 
 # %%
-def surface_cut(points, u, tets, axis, value):
-    """Where the plane x[axis] = value cuts the boundary triangles of the tetrahedra: reference points and u."""
-    faces = np.sort(tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3), axis=1)
-    unique, count = np.unique(faces, axis=0, return_counts=True)
-    triangles = unique[count == 1]
-    d = points[triangles, axis] - value
-    crossing = triangles[(d.min(axis=1) < 0) & (d.max(axis=1) > 0)]
-    cut_points, cut_u = [], []
-    for tri in crossing:
-        for i, j in ((0, 1), (1, 2), (2, 0)):
-            di, dj = points[tri[i], axis] - value, points[tri[j], axis] - value
-            if di * dj < 0:
-                s = di / (di - dj)
-                cut_points.append(points[tri[i]] + s * (points[tri[j]] - points[tri[i]]))
-                cut_u.append(u[tri[i]] + s * (u[tri[j]] - u[tri[i]]))
-    return np.array(cut_points), np.array(cut_u)
 
 
 Xs, us = surface_cut(data.points, data.point_data["u"], tets, 1, 0.0)
