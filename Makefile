@@ -3,14 +3,17 @@ SHELL := /bin/bash
 VENV := .venv
 PY := $(VENV)/bin/python
 DEB_PACKAGES := python3-dolfinx python3-gmsh python3-meshio python3-scipy python3-venv \
-                libopenblas0-pthread openmpi-bin
+                libopenblas0-pthread openmpi-bin libegl1 libegl-mesa0
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 MPIRUN := mpirun -n 2 --oversubscribe
 
-.PHONY: setup system demo test test-serial test-mpi lint benchmark clean
+.PHONY: setup system demo test test-serial test-mpi lint benchmark release-data compare-releases clean
+
+#: 12 or 13: the Debian release this machine runs (the CI legs write their release data apart)
+DEBIAN := $(shell . /etc/os-release 2>/dev/null && echo $$VERSION_ID)
 
 system:
 	@missing=$$(for p in $(DEB_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
@@ -20,10 +23,14 @@ system:
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
 
+# pip must not replace what Debian built dolfinx against (numpy 1.x on Debian 12, 2.x on Debian 13):
+# the venv sees the system packages, and pip is constrained to their versions.
+SYSTEM_PINNED := numpy scipy meshio mpi4py petsc4py
 $(VENV)/.installed: pyproject.toml | system
 	/usr/bin/python3 -m venv --system-site-packages $(VENV)
-	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test]'
+	$(PY) -c 'import importlib.metadata as m; [print(f"{p}=={m.version(p)}") for p in "$(SYSTEM_PINNED)".split()]' \
+	  > $(VENV)/constraints.txt
+	$(PY) -m pip install -q -c $(VENV)/constraints.txt -e '.[test]'
 	touch $@
 
 setup: system $(VENV)/.installed
@@ -42,6 +49,14 @@ test: test-serial test-mpi
 
 lint: setup
 	$(PY) -m ruff check forms model meshes tests benchmarks notebooks examples
+
+# Five runs and the verify references of every law on this release, from inputs shared by both
+# CI legs (tests/release_data.py); compare-releases checks debian12/ against debian13/.
+release-data: setup
+	$(PY) tests/release_data.py results/releases/inputs results/releases/debian$(DEBIAN)
+
+compare-releases: setup
+	RELEASE_DATA=results/releases $(PY) -m pytest -q -s -rs tests/test_releases.py
 
 benchmark: setup
 	$(PY) benchmarks/assembly.py

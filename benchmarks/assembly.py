@@ -51,6 +51,7 @@ from petsc4py import PETSc  # noqa: E402
 
 import forms  # noqa: E402
 import meshes  # noqa: E402
+from model import compat  # noqa: E402
 from model.config import parse  # noqa: E402
 from model.domain import build_domain  # noqa: E402
 from model.problem import ElasticityProblem  # noqa: E402
@@ -127,7 +128,7 @@ def assembly_case(comm: MPI.Comm, law_name: str, degree: int, quadrature_degree:
     residual_ufl = problem.residual_form
     jacobian_ufl = ufl.derivative(residual_ufl, problem.solution, ufl.TrialFunction(problem.space))
     jit = {"cache_dir": cache_dir}
-    compiled: dict[str, fem.FormMetaClass] = {}
+    compiled: dict[str, compat.Form] = {}
     compile_residual = slowest(comm, lambda: compiled.update(r=fem.form(residual_ufl, jit_params=jit)))
     compile_jacobian = slowest(comm, lambda: compiled.update(j=fem.form(jacobian_ufl, jit_params=jit)))
     residual, jacobian = compiled["r"], compiled["j"]

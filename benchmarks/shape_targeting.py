@@ -43,6 +43,7 @@ for path in (ROOT, ROOT / "tests"):
     if str(path) not in sys.path:
         sys.path.insert(0, str(path))
 
+from model import compat  # noqa: E402
 from model.config import parse  # noqa: E402
 from model.loadstepping import StepRecord, step_loads  # noqa: E402
 from model.projective_dynamics import ProjectiveDynamicsSolver  # noqa: E402
@@ -112,7 +113,7 @@ def projection_breakdown(comm: MPI.Comm, tangent) -> dict[str, float]:
     evaluate = project = 0.0
     for expression, cells, _ in tangent.blocks:
         start = time.perf_counter()
-        values = expression.eval(cells).reshape(-1, 3, 3, 3, 3)
+        values = compat.evaluate(expression, tangent.problem.domain.mesh, cells).reshape(-1, 3, 3, 3, 3)
         evaluate += time.perf_counter() - start
         start = time.perf_counter()
         project_tangent(values)

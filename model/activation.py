@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 from dolfinx import fem
 
+from model import compat
 from model.domain import Domain
 
 Table = Sequence[tuple[float, float]]
@@ -29,7 +30,7 @@ class ActivationField:
 
     def __init__(self, domain: Domain, name: str = "activation") -> None:
         self.domain = domain
-        self.function = fem.Function(fem.FunctionSpace(domain.mesh, ("DG", 0)), name=name)
+        self.function = fem.Function(compat.function_space(domain.mesh, "DG", 0), name=name)
         self.curves: list[tuple[str, np.ndarray, tuple[tuple[float, float], ...]]] = []
 
     def add(self, region: str, table: Table) -> None:
@@ -40,7 +41,7 @@ class ActivationField:
         if any(t1 <= t0 for (t0, _), (t1, _) in zip(table, table[1:])):
             raise ValueError(f"activation of {region!r}: times must increase, got {table}")
         cells = self.domain.region_cells(region)
-        dofs = self.function.function_space.dofmap.list.array.reshape(-1)[cells]
+        dofs = compat.cell_dofs(self.function.function_space.dofmap).reshape(-1)[cells]
         self.curves.append((region, dofs, table))
         self.update(0.0)
 

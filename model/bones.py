@@ -46,6 +46,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from forms.obstacles import Obstacle, gap, sliding_energy
+from model import compat
 from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
@@ -331,7 +332,7 @@ class SurfaceNodes:
     def __init__(self, problem: ElasticityProblem, surface: str) -> None:
         msh = problem.domain.mesh
         self.comm: MPI.Comm = msh.comm
-        self.space = fem.FunctionSpace(msh, ("Lagrange", problem.degree))
+        self.space = compat.function_space(msh, "Lagrange", problem.degree)
         fdim = msh.topology.dim - 1
         dofs = fem.locate_dofs_topological(self.space, fdim, problem.domain.boundary_facets(surface))
         owned = self.space.dofmap.index_map.size_local
@@ -410,7 +411,7 @@ class SlidingConstraint:
     frame: MovingFrame
     gap: ufl.core.expr.Expr
     nodes: SurfaceNodes
-    force_forms: list[fem.FormMetaClass]
+    force_forms: list[compat.Form]
 
     def max_gap(self) -> float:
         """max |g| over the surface nodes (all ranks)."""

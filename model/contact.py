@@ -63,6 +63,7 @@ from forms.obstacles import (
     contact_pressure,
     penalty_energy,
 )
+from model import compat
 from model.bones import MovingFrame, RigidMotion, SurfaceNodes, body_size, current_position, surface_measure
 from model.problem import ElasticityProblem
 from model.solver import NewtonSolver, SolveResult
@@ -113,7 +114,7 @@ class _SurfaceContact:
         gv = self.frame.gap(self.obstacle, xv)
         return gv, ufl.diff(gv, xv)
 
-    def _force(self, forms: list[fem.FormMetaClass]) -> list[float]:
+    def _force(self, forms: list[compat.Form]) -> list[float]:
         comm = self.nodes.comm
         return [float(comm.allreduce(fem.assemble_scalar(f), op=MPI.SUM)) for f in forms]
 
@@ -331,7 +332,7 @@ class VISolver:
     def _predict(self) -> None:
         newton, problem = self.newton, self.problem
         x = newton.x
-        problem.solution.vector.copy(x)
+        compat.petsc_vector(problem.solution).copy(x)
         lower = np.full(x.getLocalSize(), PETSc.NINFINITY)
         upper = np.full(x.getLocalSize(), PETSc.INFINITY)
         _fill_bounds(self.contacts, lower, upper)
@@ -358,8 +359,8 @@ class VISolver:
         self._ksp.solve(b, du)
         x.axpy(-1.0, du)  # Newton: A du = b, x <- x - du
         du.destroy()
-        x.copy(problem.solution.vector)
-        problem.solution.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        x.copy(compat.petsc_vector(problem.solution))
+        compat.petsc_vector(problem.solution).ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         log.debug("VI predictor: %d bounds violated before the solve", comm.allreduce(len(rows), op=MPI.SUM))
 
     def solve(self) -> SolveResult:

@@ -14,12 +14,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import ufl
-from dolfinx import cpp as _cpp
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from meshes import MeshData
+from model import compat
 
 
 @dataclass
@@ -27,8 +26,8 @@ class Domain:
     """A mesh with cell and facet tags and the codes of each named region and boundary."""
 
     mesh: dmesh.Mesh
-    cell_tags: dmesh.MeshTagsMetaClass
-    facet_tags: dmesh.MeshTagsMetaClass
+    cell_tags: compat.MeshTags
+    facet_tags: compat.MeshTags
     regions: dict[str, tuple[int, ...]]
     boundaries: dict[str, tuple[int, ...]]
 
@@ -83,19 +82,12 @@ def build_domain(comm: MPI.Comm, data: MeshData | None, root: int = 0) -> Domain
         cell_codes = np.empty(0, dtype=np.int32)
         facet_codes = np.empty(0, dtype=np.int32)
         points = np.empty((0, 3), dtype=np.float64)
-    element = ufl.VectorElement("Lagrange", ufl.tetrahedron, 1)
-    msh = dmesh.create_mesh(comm, cells.astype(np.int64), points, ufl.Mesh(element))
+    msh = compat.create_mesh(comm, cells, points)
     tdim = msh.topology.dim
-    msh.topology.create_connectivity(tdim, 0)
-    entities, values = _cpp.io.distribute_entity_data(msh._mesh, tdim, cells.astype(np.int64), cell_codes)
-    adj = _cpp.graph.AdjacencyList_int32(entities)
-    ct = dmesh.meshtags_from_entities(msh, tdim, adj, values.astype(np.int32))
+    ct = compat.meshtags_from_input(msh, tdim, cells, cell_codes)
     ct.name = "regions"
     msh.topology.create_connectivity(tdim - 1, tdim)
-    msh.topology.create_connectivity(tdim - 1, 0)
-    entities, values = _cpp.io.distribute_entity_data(msh._mesh, tdim - 1, facets.astype(np.int64), facet_codes)
-    adj = _cpp.graph.AdjacencyList_int32(entities)
-    ft = dmesh.meshtags_from_entities(msh, tdim - 1, adj, values.astype(np.int32))
+    ft = compat.meshtags_from_input(msh, tdim - 1, facets, facet_codes)
     ft.name = "boundaries"
     return Domain(msh, ct, ft, regions, boundaries)
 

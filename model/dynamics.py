@@ -82,6 +82,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from ufl.algorithms import expand_derivatives
 
+from model import compat
 from model.problem import ElasticityProblem
 from model.solver import SolveResult
 
@@ -314,7 +315,7 @@ class Dynamics:
         if damping_work is not None:  # w -> work: v^T D v
             test = damping_work.arguments()[0]
             self._power_form = fem.form(ufl.replace(damping_work, {test: self._work}))
-        self._potential_form: fem.FormMetaClass | None = None
+        self._potential_form: compat.Form | None = None
         self._mass_solver: tuple[Any, ...] | None = None
 
     # --- forms ---------------------------------------------------------------------------------------
@@ -363,8 +364,8 @@ class Dynamics:
             problem.set_load_factor(load_factor)
         if u0 is not None:
             self._assign(problem.solution, u0)
-        x = problem.solution.vector
-        fem_petsc.set_bc(x, problem.bcs)
+        x = compat.petsc_vector(problem.solution)
+        compat.set_bc(x, problem.bcs)
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         self.u_n.x.array[:] = problem.solution.x.array
         self.v_n.x.array[:] = 0.0
@@ -428,7 +429,7 @@ class Dynamics:
                 for dofs in entry.dofs:
                     local.array[dofs] = 0.0
         ksp.setOperators(M)
-        ksp.solve(b, self.a_n.vector)
+        ksp.solve(b, compat.petsc_vector(self.a_n))
         if ksp.getConvergedReason() < 0:
             raise RuntimeError(f"initial acceleration: the mass-matrix solve failed (KSP reason "
                                f"{ksp.getConvergedReason()}); is some region massless?")
@@ -480,7 +481,7 @@ class Dynamics:
 
     # --- energies ------------------------------------------------------------------------------------
 
-    def _assemble(self, form: fem.FormMetaClass) -> float:
+    def _assemble(self, form: compat.Form) -> float:
         self.problem.update_state()
         return float(self.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
 

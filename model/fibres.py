@@ -19,6 +19,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from model import compat
 from model.domain import Domain
 
 
@@ -43,10 +44,10 @@ class FibreField:
         self.domain = domain
         self.cells = domain.region_cells(region)
         if function is None:
-            function = fem.Function(fem.VectorFunctionSpace(domain.mesh, ("DG", 0)), name=name)
+            function = fem.Function(compat.function_space(domain.mesh, "DG", 0, (3,)), name=name)
         space = function.function_space
         self.function = function
-        dofs = space.dofmap.list.array.reshape(-1)[self.cells]
+        dofs = compat.cell_dofs(space.dofmap).reshape(-1)[self.cells]
         self._index = (dofs[:, None] * 3 + np.arange(3)).reshape(-1)
 
     def set_values(self, values: np.ndarray) -> FibreField:
@@ -78,7 +79,7 @@ class FibreField:
         """
         phi = potential if potential is not None else solve_laplace(self.domain, origin, insertion, region)
         grad = fem.Expression(ufl.grad(phi), np.zeros((1, 3)) + 0.25)  # P1: grad is constant per cell
-        values = grad.eval(self.cells).reshape(-1, 3)
+        values = compat.evaluate(grad, self.domain.mesh, self.cells).reshape(-1, 3)
         return self.set_values(values)
 
 
@@ -89,7 +90,7 @@ def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Seq
     ``region``: "all", one region name or several. ValueError if a surface has no node in the region(s).
     """
     msh = domain.mesh
-    V = fem.FunctionSpace(msh, ("Lagrange", 1))
+    V = compat.function_space(msh, "Lagrange", 1)
     phi, q = ufl.TrialFunction(V), ufl.TestFunction(V)
     dx = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags, metadata={"quadrature_degree": 1})
     names = [region] if isinstance(region, str) else list(region)
@@ -110,7 +111,7 @@ def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Seq
     inside = np.arange(num_local, dtype=np.int32)
     if names != ["all"]:
         cells = np.concatenate([domain.region_cells(n) for n in names])
-        inside = np.unique(V.dofmap.list.array.reshape(-1, 4)[cells])
+        inside = np.unique(compat.cell_dofs(V.dofmap)[cells])
         outside = np.setdiff1d(np.arange(num_local, dtype=np.int32), inside)
         bcs.append(fem.dirichletbc(zero, outside))
     owned = V.dofmap.index_map.size_local
@@ -122,16 +123,16 @@ def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Seq
     A = fem_petsc.assemble_matrix(a, bcs=bcs)
     A.assemble()
     b = fem_petsc.assemble_vector(L)
-    fem_petsc.apply_lifting(b, [a], bcs=[bcs])
+    compat.apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    fem_petsc.set_bc(b, bcs)
+    compat.set_bc(b, bcs)
     ksp = PETSc.KSP().create(msh.comm)
     ksp.setOperators(A)
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
     ksp.getPC().setFactorSolverType("mumps")
     solution = fem.Function(V, name="fibre_potential")
-    ksp.solve(b, solution.vector)
+    ksp.solve(b, compat.petsc_vector(solution))
     solution.x.scatter_forward()
     ksp.destroy()
     A.destroy()

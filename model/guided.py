@@ -45,6 +45,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import forms
+from model import compat
 from model.config import ConfigError, RunConfig
 from model.domain import Domain
 from model.loadstepping import StepRecord, step_loads
@@ -79,13 +80,13 @@ class CellDeformation:
         self.num_owned = msh.topology.index_map(tdim).size_local
         self.num_global = msh.topology.index_map(tdim).size_global
         self.original = np.asarray(msh.topology.original_cell_index, dtype=np.int64)[: self.num_owned]
-        scalar = fem.FunctionSpace(msh, ("DG", 0))
-        tensor = fem.TensorFunctionSpace(msh, ("DG", 0))
+        scalar = compat.function_space(msh, "DG", 0)
+        tensor = compat.function_space(msh, "DG", 0, (3, 3))
         volume = fem_petsc.assemble_vector(fem.form(ufl.TestFunction(scalar) * problem.dx))
         self.volume = volume.array.copy()
         volume.destroy()
-        self.scalar_dofs = scalar.dofmap.list.array.reshape(-1)[: self.num_owned]
-        self.tensor_dofs = tensor.dofmap.list.array.reshape(-1)[: self.num_owned]
+        self.scalar_dofs = compat.cell_dofs(scalar.dofmap).reshape(-1)[: self.num_owned]
+        self.tensor_dofs = compat.cell_dofs(tensor.dofmap).reshape(-1)[: self.num_owned]
         self.form = fem.form(ufl.inner(problem.F, ufl.TestFunction(tensor)) * problem.dx)
 
     def gather(self, local: np.ndarray) -> np.ndarray:
@@ -117,11 +118,11 @@ class VertexPositions:
         self.problem = problem
         self.comm = msh.comm
         num_cells = msh.topology.index_map(tdim).size_local
-        self.u = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)))
-        geometry = msh.geometry.dofmap.array.reshape(-1, 4)[:num_cells]
+        self.u = fem.Function(compat.function_space(msh, "Lagrange", 1, (3,)))
+        geometry = compat.geometry_dofs(msh)[:num_cells]
         self.ids = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[geometry].reshape(-1)
         self.reference_local = msh.geometry.x[geometry].reshape(-1, 3)
-        self.u_dofs = self.u.function_space.dofmap.list.array.reshape(-1, 4)[:num_cells].reshape(-1)
+        self.u_dofs = compat.cell_dofs(self.u.function_space.dofmap)[:num_cells].reshape(-1)
         self.num_points = self.comm.allreduce(int(self.ids.max(initial=-1)), op=MPI.MAX) + 1
         self.reference = self._gather(self.reference_local)
 

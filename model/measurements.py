@@ -10,10 +10,11 @@ the boundary exerts on the body. A dof constrained by two boundaries counts in b
 from __future__ import annotations
 
 import numpy as np
-from dolfinx import fem, geometry
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from model import compat
 from model.problem import ElasticityProblem
 
 
@@ -26,9 +27,7 @@ class Probes:
         self.points = np.array([points[n] for n in self.names], dtype=np.float64).reshape(-1, 3)
         comm = domain_mesh.comm
         tdim = domain_mesh.topology.dim
-        tree = geometry.BoundingBoxTree(domain_mesh, tdim)
-        candidates = geometry.compute_collisions(tree, self.points)
-        colliding = geometry.compute_colliding_cells(domain_mesh, candidates, self.points)
+        colliding = compat.colliding_cells(domain_mesh, self.points)
         num_owned = domain_mesh.topology.index_map(tdim).size_local
         self.cells = np.full(len(self.names), -1, dtype=np.int32)
         for i in range(len(self.names)):
@@ -89,7 +88,7 @@ class Volumes:
         self.reference = {n: self._sum(fem.form(one * problem.region_measure(n))) for n in names}
         self.areas = {n: self._sum(fem.form(one * problem.boundary_measure(n))) for n in sorted(domain.boundaries)}
 
-    def _sum(self, form: fem.FormMetaClass) -> float:
+    def _sum(self, form: compat.Form) -> float:
         return float(self.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
 
     def current(self) -> dict[str, float]:

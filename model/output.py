@@ -26,6 +26,7 @@ from dolfinx.fem import petsc as fem_petsc
 from dolfinx.io import XDMFFile
 from petsc4py import PETSc
 
+from model import compat
 from model.problem import ElasticityProblem
 from model.render import render_in_subprocess
 
@@ -46,8 +47,8 @@ class CellAverages:
         msh = problem.domain.mesh
         self.problem = problem
         dx_all = problem.dx
-        self.scalar_space = fem.FunctionSpace(msh, ("DG", 0))
-        self.tensor_space = fem.TensorFunctionSpace(msh, ("DG", 0))
+        self.scalar_space = compat.function_space(msh, "DG", 0)
+        self.tensor_space = compat.function_space(msh, "DG", 0, (3, 3))
         s, t = ufl.TestFunction(self.scalar_space), ufl.TestFunction(self.tensor_space)
         volume = fem_petsc.assemble_vector(fem.form(s * dx_all))
         volume.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
@@ -89,7 +90,7 @@ class ResultWriter:
             self.directory.mkdir(parents=True, exist_ok=True)
         self.comm.barrier()
         msh = problem.domain.mesh
-        self.u_out = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 1)), name="u")
+        self.u_out = fem.Function(compat.function_space(msh, "Lagrange", 1, (3,)), name="u")
         self.averages = CellAverages(problem)
         self.want_vtu, self.want_png = vtu, png
         self.xdmf = None
@@ -121,15 +122,15 @@ class ResultWriter:
         msh = self.problem.domain.mesh
         tdim = msh.topology.dim
         num_cells = msh.topology.index_map(tdim).size_local
-        geo_dofs = msh.geometry.dofmap.array.reshape(-1, 4)[:num_cells]
+        geo_dofs = compat.geometry_dofs(msh)[:num_cells]
         ids = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[geo_dofs]
         coords = msh.geometry.x[geo_dofs]
-        u_dofs = self.u_out.function_space.dofmap.list.array.reshape(-1, 4)[:num_cells]
+        u_dofs = compat.cell_dofs(self.u_out.function_space.dofmap)[:num_cells]
         u_values = self.u_out.x.array.reshape(-1, 3)[u_dofs]
         cell_values = {}
         for name, f in fields.items():
             bs = f.function_space.dofmap.index_map_bs
-            dofs = f.function_space.dofmap.list.array.reshape(-1)[:num_cells]
+            dofs = compat.cell_dofs(f.function_space.dofmap).reshape(-1)[:num_cells]
             cell_values[name] = f.x.array.reshape(-1, bs)[dofs]
         parts = self.comm.gather((ids, coords, u_values, cell_values), root=0)
         if self.comm.rank != 0:

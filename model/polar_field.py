@@ -8,20 +8,13 @@ the rotation variant, and writes R0.
 
 from __future__ import annotations
 
-import basix
 import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from forms.polar import linearised_rotation, polar_rotation
-
-
-def quadrature_points(cell: dmesh.CellType, degree: int) -> np.ndarray:
-    """Reference points of the default basix rule of the given degree (the rule the forms use)."""
-    ctype = basix.cell.string_to_type(dmesh.to_string(cell))
-    points, _ = basix.make_quadrature(ctype, degree)
-    return points
+from model import compat
 
 
 class PolarField:
@@ -29,10 +22,10 @@ class PolarField:
 
     def __init__(self, domain: dmesh.Mesh, M: ufl.core.expr.Expr, quadrature_degree: int,
                  cells: np.ndarray | None = None) -> None:
-        element = ufl.TensorElement("Quadrature", domain.ufl_cell(), quadrature_degree, quad_scheme="default")
-        self.space = fem.FunctionSpace(domain, element)
+        self.mesh = domain
+        self.space = compat.quadrature_space(domain, quadrature_degree, (3, 3))
         self.R0 = fem.Function(self.space, name="polar_rotation")
-        points = quadrature_points(domain.topology.cell_type, quadrature_degree)
+        points = compat.quadrature_points(domain, quadrature_degree)
         self.num_points = points.shape[0]
         self.expression = fem.Expression(M, points)
         tdim = domain.topology.dim
@@ -40,7 +33,7 @@ class PolarField:
         if cells is None:
             cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
         self.cells = np.asarray(cells, dtype=np.int32)
-        dofs = self.space.dofmap.list.array.reshape(-1, self.num_points)[self.cells]
+        dofs = compat.cell_dofs(self.space.dofmap)[self.cells]
         self._index = (dofs[..., None] * 9 + np.arange(9)).reshape(-1)
         identity = np.tile(np.eye(3).reshape(-1), self.R0.x.array.size // 9)
         self.R0.x.array[:] = identity
@@ -50,6 +43,6 @@ class PolarField:
         """R0 <- polar(M) at every quadrature point of the cells, from the current coefficients."""
         if self.cells.size == 0:
             return
-        values = self.expression.eval(self.cells)
+        values = compat.evaluate(self.expression, self.mesh, self.cells)
         M = values.reshape(-1, 3, 3)
         self.R0.x.array[self._index] = polar_rotation(M).reshape(-1)

@@ -27,6 +27,7 @@ from petsc4py import PETSc
 
 from forms import Law
 from forms.kinematics import cauchy_stress, deformation_gradient, von_mises
+from model import compat
 from model.domain import Domain
 from model.polar_field import PolarField
 
@@ -41,7 +42,7 @@ class DirichletBoundary:
 
     name: str
     components: tuple[int, ...]
-    bcs: list[fem.DirichletBCMetaClass] = field(default_factory=list)
+    bcs: list[compat.DirichletBC] = field(default_factory=list)
     dofs: list[np.ndarray] = field(default_factory=list)  # local indices in the solution vector
     values: list[fem.Function] = field(default_factory=list)
     reference: list[np.ndarray] = field(default_factory=list)
@@ -64,14 +65,14 @@ class ElasticityProblem:
         self.formulation = formulation
         self.materials = list(materials)
         msh = domain.mesh
-        cell = msh.ufl_cell()
-        displacement_element = ufl.VectorElement("Lagrange", cell, degree)
+        cell = compat.cell_name(msh)
+        displacement_element = compat.element("Lagrange", cell, degree, (3,))
         if formulation == "mixed":
-            element = ufl.MixedElement([displacement_element, ufl.FiniteElement("Lagrange", cell, degree - 1)])
-            self.space = fem.FunctionSpace(msh, element)
+            element = compat.mixed_element([displacement_element, compat.element("Lagrange", cell, degree - 1)])
+            self.space = compat.function_space(msh, element)
             self.displacement_space = self.space.sub(0)
         else:
-            self.space = fem.FunctionSpace(msh, displacement_element)
+            self.space = compat.function_space(msh, displacement_element)
             self.displacement_space = self.space
         self.solution = fem.Function(self.space, name="solution")
         if formulation == "mixed":
@@ -103,7 +104,7 @@ class ElasticityProblem:
             self._add_material(region, law)
         self.dirichlet: list[DirichletBoundary] = []
         self.load_hooks: list[Callable[[float], None]] = []
-        self._forms: tuple[fem.FormMetaClass, fem.FormMetaClass] | None = None
+        self._forms: tuple[compat.Form, compat.Form] | None = None
 
     # --- set-up ---------------------------------------------------------------------------------
 
@@ -234,7 +235,7 @@ class ElasticityProblem:
         return self.internal - self.external if self.external != 0 else self.internal
 
     @property
-    def forms(self) -> tuple[fem.FormMetaClass, fem.FormMetaClass]:
+    def forms(self) -> tuple[compat.Form, compat.Form]:
         """(residual, Jacobian) compiled; the Jacobian is the Gateaux derivative of the residual."""
         if self._forms is None:
             residual = self.residual_form
@@ -243,7 +244,7 @@ class ElasticityProblem:
         return self._forms
 
     @property
-    def bcs(self) -> list[fem.DirichletBCMetaClass]:
+    def bcs(self) -> list[compat.DirichletBC]:
         return [bc for entry in self.dirichlet for bc in entry.bcs]
 
     def set_load_factor(self, value: float) -> None:

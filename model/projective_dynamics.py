@@ -41,6 +41,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from forms.shape_target import ShapeTarget
+from model import compat
 from model.problem import ElasticityProblem
 from model.solver import REASONS, SolveResult
 
@@ -124,15 +125,15 @@ class ProjectiveDynamicsSolver:
         self.ksp.setFromOptions()
         for key in linear:
             db.delValue(f"{self.prefix}{key}")
-        self._work_form: fem.FormMetaClass | None = None
+        self._work_form: compat.Form | None = None
         #: how often K was assembled (1: never re-assembled)
         self.stiffness_assemblies = 1
 
     # --- the pieces of one iteration ------------------------------------------------------------
 
     def _impose_dirichlet(self) -> None:
-        x = self.problem.solution.vector
-        fem_petsc.set_bc(x, self.problem.bcs)
+        x = compat.petsc_vector(self.problem.solution)
+        compat.set_bc(x, self.problem.bcs)
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
 
     def _residual(self) -> float:
@@ -148,8 +149,8 @@ class ProjectiveDynamicsSolver:
             b_local.set(0.0)
         fem_petsc.assemble_vector(b, self.residual_form)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        x = problem.solution.vector
-        fem_petsc.set_bc(b, problem.bcs, x, -1.0)
+        x = compat.petsc_vector(problem.solution)
+        compat.set_bc(b, problem.bcs, x, -1.0)
         return b.norm()
 
     def _global_step(self) -> int:
@@ -158,7 +159,7 @@ class ProjectiveDynamicsSolver:
         reason = self.ksp.getConvergedReason()
         if reason < 0:
             raise RuntimeError(f"projective dynamics: the global solve failed (KSP reason {reason})")
-        x = self.problem.solution.vector
+        x = compat.petsc_vector(self.problem.solution)
         x.axpy(-1.0, self.du)
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         return max(self.ksp.getIterationNumber(), 1)

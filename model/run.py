@@ -19,6 +19,7 @@ from typing import Any
 
 from mpi4py import MPI
 
+from model import compat
 from model.config import RunConfig
 from model.loadstepping import step_loads
 from model.measurements import Volumes, reactions
@@ -112,6 +113,9 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     start = time.perf_counter()
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
+    versions = comm.bcast(compat.versions() if comm.rank == 0 else None, root=0)
+    if comm.rank == 0:
+        log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
     if dynamic and config.dynamics.initial == "equilibrium":
@@ -129,6 +133,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "region_volumes": volumes.reference,
         "boundary_areas": volumes.areas,
         "solver": {"method": config.solver.method, "tangent": config.solver.tangent},
+        "versions": versions,
         "wall_time_s": 0.0,
         "status": "running",
         "steps": [],

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from model import compat
 from model.verify import CheckRow, ReferenceEvaluator, compare, deformation_samples, field_samples
 
 SEED = 2020
@@ -511,14 +512,12 @@ class OneCell:
     def __init__(self, material: str, params: dict[str, float]) -> None:
         import ufl
         from dolfinx import fem
-        from dolfinx import mesh as dmesh
 
         import forms
         from model.polar_field import PolarField
 
-        domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 1))
-        self.mesh = dmesh.create_mesh(MPI.COMM_SELF, np.array([[0, 1, 2, 3]], dtype=np.int64), TET, domain)
-        self.space = fem.VectorFunctionSpace(self.mesh, ("Lagrange", 1))
+        self.mesh = compat.create_mesh(MPI.COMM_SELF, np.array([[0, 1, 2, 3]], dtype=np.int64), TET)
+        self.space = compat.function_space(self.mesh, "Lagrange", 1, (3,))
         self.u = fem.Function(self.space)
         extra = {}
         self.S = None

@@ -18,6 +18,7 @@ from mpi4py import MPI
 
 import forms
 import meshes
+from model import compat
 from model.activation import ActivationField
 from model.config import ConfigError, MeshConfig, RunConfig
 from model.domain import Domain, build_domain, read_meshio
@@ -109,7 +110,7 @@ def _fibre_fields(config: RunConfig, domain: Domain) -> fem.Function | None:
     """One DG0 vector Function a0 for all fibre materials, each setting its region's cells."""
     if not any(m.fibres is not None for m in config.materials):
         return None
-    function = fem.Function(fem.VectorFunctionSpace(domain.mesh, ("DG", 0)), name="fibre_direction")
+    function = fem.Function(compat.function_space(domain.mesh, "DG", 0, (3,)), name="fibre_direction")
     potentials: dict[tuple[str, str, tuple[str, ...]], fem.Function] = {}
     for i, m in enumerate(config.materials):
         spec = m.fibres

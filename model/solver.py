@@ -27,6 +27,7 @@ from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
 from petsc4py import PETSc
 
+from model import compat
 from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
@@ -121,7 +122,10 @@ def rigid_body_modes(problem: ElasticityProblem) -> PETSc.NullSpace:
         with vectors[3 + k].localForm() as local:
             local.array[a:owned * bs:bs] = -x[:, b]
             local.array[b:owned * bs:bs] = x[:, a]
-    la.orthonormalize(vectors)
+    for i, v in enumerate(vectors):  # modified Gram-Schmidt
+        for w in vectors[:i]:
+            v.axpy(-w.dot(v), w)
+        v.normalize()
     return PETSc.NullSpace().create(vectors=vectors, comm=space.mesh.comm)
 
 
@@ -155,7 +159,7 @@ class NewtonSolver:
         if problem.formulation == "displacement":
             self.near_null_space = rigid_body_modes(problem)
             self.A.setNearNullSpace(self.near_null_space)
-        self.x = problem.solution.vector.copy()
+        self.x = compat.petsc_vector(problem.solution).copy()
         self.snes = PETSc.SNES().create(comm)
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
@@ -185,8 +189,9 @@ class NewtonSolver:
 
     def _copy_in(self, x: PETSc.Vec) -> None:
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        x.copy(self.problem.solution.vector)
-        self.problem.solution.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        solution = compat.petsc_vector(self.problem.solution)
+        x.copy(solution)
+        solution.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         self.problem.update_state()
 
     def _residual(self, snes: PETSc.SNES, x: PETSc.Vec, b: PETSc.Vec) -> None:
@@ -198,9 +203,9 @@ class NewtonSolver:
             b_local.set(0.0)
         fem_petsc.assemble_vector(b, self.residual_form)
         bcs = self.problem.bcs
-        fem_petsc.apply_lifting(b, [self.jacobian_form], bcs=[bcs], x0=[x], scale=-1.0)
+        compat.apply_lifting(b, [self.jacobian_form], bcs=[bcs], x0=[x], alpha=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        fem_petsc.set_bc(b, bcs, x, -1.0)
+        compat.set_bc(b, bcs, x, -1.0)
 
     def _jacobian(self, snes: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
         self._copy_in(x)
@@ -212,7 +217,7 @@ class NewtonSolver:
 
     def solve(self) -> SolveResult:
         """Newton from the current solution; the solution holds the last iterate afterwards."""
-        self.problem.solution.vector.copy(self.x)
+        compat.petsc_vector(self.problem.solution).copy(self.x)
         if self.projected is not None:  # the tangent of the initial state (targets may have changed)
             self._copy_in(self.x)
             self.projected.invalidate()

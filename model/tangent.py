@@ -27,7 +27,7 @@ from dolfinx import fem
 
 from forms.polar import linearised_rotation
 from forms.projection import project_tangent
-from model.polar_field import quadrature_points
+from model import compat
 from model.problem import ElasticityProblem
 
 #: Expression evaluation and projection go by blocks of this many cells (bounds the memory of
@@ -55,10 +55,9 @@ class ProjectedTangent:
         self.problem = problem
         msh = problem.domain.mesh
         q = problem.quadrature_degree
-        element = ufl.TensorElement("Quadrature", msh.ufl_cell(), q, shape=(9, 9), quad_scheme="default")
-        self.space = fem.FunctionSpace(msh, element)
+        self.space = compat.quadrature_space(msh, q, (9, 9))
         self.A = fem.Function(self.space, name="projected_tangent")
-        points = quadrature_points(msh.topology.cell_type, q)
+        points = compat.quadrature_points(msh, q)
         self.num_points = points.shape[0]
         rotating = [law for _, law in problem.materials if law.needs_rotation]
         if len(rotating) != len(problem.polar_fields):
@@ -66,7 +65,7 @@ class ProjectedTangent:
         polar_fields = iter(problem.polar_fields)  # one per law with a rotation, in material order
         num_owned = msh.topology.index_map(msh.topology.dim).size_local
         owner = np.full(num_owned, -1)
-        dofmap = self.space.dofmap.list.array.reshape(-1, self.num_points)
+        dofmap = compat.cell_dofs(self.space.dofmap)
         Fv = ufl.variable(problem.F)
         du = ufl.TrialFunction(problem.space)
         flat_grad_du = _flat(ufl.grad(du))
@@ -110,7 +109,7 @@ class ProjectedTangent:
         for expression, cells, index in self.blocks:
             for start in range(0, len(cells), CHUNK_CELLS):
                 chunk = slice(start, start + CHUNK_CELLS)
-                A = expression.eval(cells[chunk]).reshape(-1, 3, 3, 3, 3)
+                A = compat.evaluate(expression, self.problem.domain.mesh, cells[chunk]).reshape(-1, 3, 3, 3, 3)
                 if self.count_negative:
                     smallest = np.linalg.eigvalsh(0.5 * (A.reshape(-1, 9, 9) + A.reshape(-1, 9, 9).transpose(0, 2, 1)))
                     scale = np.abs(A).reshape(len(A), -1).max(axis=1)

@@ -25,6 +25,7 @@ from dolfinx import mesh as dmesh
 
 from forms.law import ParameterError
 from forms.shape_target import check_shape_targets
+from model import compat
 
 TargetFunction = Callable[[np.ndarray, float], np.ndarray]
 TargetSource = np.ndarray | TargetFunction
@@ -59,11 +60,11 @@ class TargetField:
         self.mesh = domain
         self.cells = np.asarray(cells, dtype=np.int32)
         self.name = name
-        space = fem.TensorFunctionSpace(domain, ("DG", 0))
+        space = compat.function_space(domain, "DG", 0, (3, 3))
         self.function = fem.Function(space, name=name)
         num_local = self.function.x.array.size // 9
         self.function.x.array[:] = np.tile(np.eye(3).reshape(-1), num_local)
-        dofs = space.dofmap.list.array.reshape(-1)
+        dofs = compat.cell_dofs(space.dofmap).reshape(-1)
         self._index = (dofs[self.cells][:, None] * 9 + np.arange(9)).reshape(-1)
         self.source = source
         self.procedural = callable(source)

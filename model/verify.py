@@ -27,13 +27,13 @@ from typing import Any
 import numpy as np
 import ufl
 from dolfinx import fem
-from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from scipy.spatial.transform import Rotation
 
 import forms
 from forms.law import Law
-from model.polar_field import PolarField, quadrature_points
+from model import compat
+from model.polar_field import PolarField
 
 QUANTITIES = ("psi", "P", "A")
 
@@ -54,11 +54,10 @@ class ReferenceEvaluator:
         reference_tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
         x = np.tile(reference_tet, (n, 1))
         cells = np.arange(4 * n, dtype=np.int64).reshape(n, 4)
-        domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 1))
-        self.mesh = dmesh.create_mesh(MPI.COMM_SELF, cells, x, domain)
+        self.mesh = compat.create_mesh(MPI.COMM_SELF, cells, x)
         # dolfinx may renumber cells: the sample of local cell c is original_cell_index[c]
         self.order = np.asarray(self.mesh.topology.original_cell_index, dtype=np.int64)
-        space = fem.TensorFunctionSpace(self.mesh, ("DG", 0))
+        space = compat.function_space(self.mesh, "DG", 0, (3, 3))
         self.F = fem.Function(space, name="F")
         self.fields: dict[str, fem.Function] = {}
         extra: dict[str, Any] = {}
@@ -66,10 +65,10 @@ class ReferenceEvaluator:
             self.fields["S"] = fem.Function(space, name="S")
             extra["S"] = self.fields["S"]
         if "a0" in _law_fields(material):
-            self.fields["a0"] = fem.Function(fem.VectorFunctionSpace(self.mesh, ("DG", 0)), name="a0")
+            self.fields["a0"] = fem.Function(compat.function_space(self.mesh, "DG", 0, (3,)), name="a0")
             extra["a0"] = self.fields["a0"]
         if "alpha" in _law_fields(material):
-            self.fields["alpha"] = fem.Function(fem.FunctionSpace(self.mesh, ("DG", 0)), name="alpha")
+            self.fields["alpha"] = fem.Function(compat.function_space(self.mesh, "DG", 0), name="alpha")
             extra["alpha"] = self.fields["alpha"]
         self.law: Law = forms.make_law(material, **extra, **params)
         Fv = ufl.variable(self.F)
@@ -81,7 +80,7 @@ class ReferenceEvaluator:
         psi = self.law.energy(Fv, R)
         P = self.law.stress(Fv, R)
         A = ufl.diff(P, Fv)
-        points = quadrature_points(self.mesh.topology.cell_type, 1)
+        points = compat.quadrature_points(self.mesh, 1)
         self.expressions = {"psi": fem.Expression(psi, points), "P": fem.Expression(P, points),
                             "A": fem.Expression(A, points)}
         self.cells = np.arange(n, dtype=np.int32)
@@ -104,7 +103,7 @@ class ReferenceEvaluator:
         inverse[self.order] = np.arange(self.num_samples)
         out = {}
         for name, shape in (("psi", ()), ("P", (3, 3)), ("A", (3, 3, 3, 3))):
-            values = self.expressions[name].eval(self.cells)
+            values = compat.evaluate(self.expressions[name], self.mesh, self.cells)
             out[name] = values.reshape(self.num_samples, *shape)[inverse]
         return out
 

@@ -25,6 +25,7 @@ from scipy.optimize import brentq
 import forms
 import meshes
 from forms.obstacles import Capsule, Plane, Sphere, gap, penalty_energy
+from model import compat
 from model.bones import TransformTable, axis_angle
 from model.config import ConfigError
 from model.contact import (
@@ -118,7 +119,7 @@ def test_signed_distances_numpy_and_ufl_agree() -> None:
     comm = MPI.COMM_WORLD
     data = meshes.box((1.0, 1.0, 1.0), (2, 2, 2)) if comm.rank == 0 else None
     msh = build_domain(comm, data).mesh
-    V = fem.FunctionSpace(msh, ("Lagrange", 1))
+    V = compat.function_space(msh, "Lagrange", 1)
     Q, c = axis_angle((1, 1, 0), 30.0), np.array([0.1, -0.2, 0.3])
     Qc = fem.Constant(msh, PETSc.ScalarType(Q))
     cc = fem.Constant(msh, PETSc.ScalarType(c))

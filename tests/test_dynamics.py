@@ -39,6 +39,7 @@ from petsc4py import PETSc
 
 import forms
 import meshes
+from model import compat
 from model.config import ConfigError
 from model.domain import build_domain
 from model.dynamics import Dynamics, DynamicsSpec, TimeStepRecord, parse_dynamics, step_time
@@ -97,7 +98,7 @@ def first_mode(problem: ElasticityProblem) -> tuple[float, fem.Function, PETSc.M
     phi /= np.abs(phi).max() * np.sign(phi[np.abs(phi).argmax()])
     r0, r1 = M.getOwnershipRange()
     mode = fem.Function(problem.space)
-    mode.vector.array[:] = phi[r0:r1]
+    compat.petsc_vector(mode).array[:] = phi[r0:r1]
     mode.x.scatter_forward()
     K.destroy()
     return math.sqrt(w2[0]), mode, M
@@ -127,14 +128,14 @@ def vibrate(rayleigh: tuple[float, float], dt: float, steps: int, amplitude: flo
     initial.x.array[:] = amplitude * mode.x.array
     dynamics.initialize(u0=initial)
     Mphi = M.createVecLeft()
-    M.mult(mode.vector, Mphi)
-    q = [Mphi.dot(problem.solution.vector)]
+    M.mult(compat.petsc_vector(mode), Mphi)
+    q = [Mphi.dot(compat.petsc_vector(problem.solution))]
     energy = [dynamics.total_energy()]
     dissipated = [0.0]
 
     def on_step(record: TimeStepRecord) -> None:
         assert record.result.converged
-        q.append(Mphi.dot(problem.solution.vector))
+        q.append(Mphi.dot(compat.petsc_vector(problem.solution)))
         energy.append(dynamics.kinetic_energy() + problem.total_energy())
         dissipated.append(dynamics.dissipated_energy)
 
@@ -301,7 +302,7 @@ def test_free_fall_is_exact(scheme: str, formulation: str) -> None:
 def _direction(problem: ElasticityProblem, seed: int) -> tuple[PETSc.Vec, np.ndarray]:
     rng = np.random.default_rng(seed + MPI.COMM_WORLD.rank)
     owned = problem.space.dofmap.index_map.size_local * problem.space.dofmap.index_map_bs
-    direction = problem.solution.vector.copy()
+    direction = compat.petsc_vector(problem.solution).copy()
     direction.array[:] = rng.uniform(-1.0, 1.0, owned)
     direction.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
     with direction.localForm() as local:

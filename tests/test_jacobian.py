@@ -17,6 +17,7 @@ from test_patch import PARAMS
 
 import forms
 import meshes
+from model import compat
 from model.domain import build_domain
 from model.problem import ElasticityProblem
 
@@ -62,7 +63,7 @@ def test_jacobian_matches_finite_differences(law: str, degree: int, formulation:
     rng = np.random.default_rng(7 + MPI.COMM_WORLD.rank)
     x = problem.solution.x
     owned = problem.space.dofmap.index_map.size_local * problem.space.dofmap.index_map_bs
-    direction = problem.solution.vector.copy()  # ghosted, like the solution
+    direction = compat.petsc_vector(problem.solution).copy()  # ghosted, like the solution
     direction.array[:] = rng.uniform(-1.0, 1.0, owned)
     if formulation == "mixed":  # scale the pressure part like the pressure itself
         _, pdofs = problem.space.sub(1).collapse()

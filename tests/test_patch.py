@@ -23,7 +23,7 @@ def affine_config(law: str, degree: int) -> dict:
     raw["mesh"]["cells"] = [3, 3, 3]
     raw["discretization"] = {"degree": degree, "quadrature_degree": 2 * degree}
     raw["material"] = [{"region": "all", "law": law, **PARAMS[law]}]
-    expr = [" + ".join([f"({G[i, j]!r})*x[{j}]" for j in range(3)] + [repr(c[i])]) for i in range(3)]
+    expr = [" + ".join([f"({float(G[i, j])!r})*x[{j}]" for j in range(3)] + [repr(float(c[i]))]) for i in range(3)]
     raw["boundary"] = [{"on": face, "type": "displacement", "components": [0, 1, 2], "expression": expr}
                        for face in ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")]
     raw["loading"] = {"steps": 2}

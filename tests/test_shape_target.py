@@ -12,6 +12,7 @@ from test_jacobian import residual
 
 import forms
 import meshes
+from model import compat
 from model.config import ConfigError, parse
 from model.domain import build_domain
 from model.problem import ElasticityProblem
@@ -77,7 +78,8 @@ def test_per_cell_targets_follow_mesh_cell_order(shared_tmp) -> None:
     from dolfinx import mesh as dmesh
 
     mid = dmesh.compute_midpoints(setup.domain.mesh, 3, target.cells)
-    values = target.function.x.array.reshape(-1, 9)[target.function.function_space.dofmap.list.array[target.cells]]
+    dofs = compat.cell_dofs(target.function.function_space.dofmap).reshape(-1)
+    values = target.function.x.array.reshape(-1, 9)[dofs[target.cells]]
     np.testing.assert_allclose(values[:, 0], 1 + mid[:, 0], atol=1e-12)
     np.testing.assert_allclose(values[:, 4], 2 + mid[:, 1], atol=1e-12)
     np.testing.assert_allclose(values[:, 8], 3 + mid[:, 2], atol=1e-12)
@@ -112,6 +114,7 @@ def test_bad_targets_are_rejected_before_the_solve(shared_tmp) -> None:
     comm.barrier()
     with pytest.raises(ConfigError, match=r"^material\[0\]\.S_file: .*target 17 is not positive definite"):
         parse(free_cube({"S_file": str(path)}))
+    comm.barrier()  # every rank has read the file before rank 0 rewrites it
     if comm.rank == 0:
         np.save(path, np.broadcast_to(np.eye(3), (10, 3, 3)))
     comm.barrier()
@@ -151,7 +154,7 @@ def test_incompatible_targets_jacobian_matches_finite_differences(inverted: bool
     A = fem_petsc.assemble_matrix(problem.forms[1])
     A.assemble()
     rng = np.random.default_rng(11 + comm.rank)
-    direction = problem.solution.vector.copy()
+    direction = compat.petsc_vector(problem.solution).copy()
     owned = problem.space.dofmap.index_map.size_local * 3
     direction.array[:] = rng.uniform(-1, 1, owned)
     tangent = A.createVecLeft()

@@ -1,0 +1,246 @@
+"""The one place that knows dolfinx versions: Debian 12's 0.5.2 and Debian 13's 0.9.
+
+Everything else in the project calls these functions instead of version-specific names. Each
+function does one thing and returns dolfinx's own objects (no wrapper classes).
+
+What differs between the two releases, and where it is handled here:
+
+- elements: ``ufl.FiniteElement``/``VectorElement``/``TensorElement``/``MixedElement`` (0.5) or
+  ``basix.ufl.element(..., shape=)``, ``mixed_element``, ``quadrature_element`` (0.9);
+- function spaces: ``fem.FunctionSpace`` and its Vector/Tensor variants (0.5) or ``fem.functionspace`` (0.9);
+- a mesh from arrays: ``create_mesh`` takes ``ufl.Mesh`` of a ufl (0.5) or basix.ufl (0.9) element;
+- tags from entities: ``cpp.io.distribute_entity_data(mesh._mesh, ...)`` with ``AdjacencyList_int32`` (0.5)
+  or ``io.distribute_entity_data(mesh, ...)`` with ``graph.adjacencylist`` (0.9);
+- dofmaps: ``AdjacencyList`` (``.array``, 0.5) or 2D numpy arrays (0.9);
+- the PETSc vector of a Function: ``u.vector`` (0.5) or ``u.x.petsc_vec`` (0.9);
+- ``Expression.eval(cells)`` (0.5) or ``eval(mesh, cells)`` (0.9);
+- ``apply_lifting``/``set_bc`` scale the lifting with ``scale=`` (0.5) or ``alpha=`` (0.9);
+- point location: ``BoundingBoxTree``/``compute_collisions`` (0.5) or ``bb_tree``/``compute_collisions_points``;
+- class names: ``FormMetaClass``, ``DirichletBCMetaClass``, ``MeshTagsMetaClass`` (0.5) or ``Form``,
+  ``DirichletBC``, ``MeshTags`` (0.9).
+"""
+
+from __future__ import annotations
+
+import platform
+import subprocess
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import dolfinx
+import numpy as np
+import ufl
+from dolfinx import fem, geometry
+from dolfinx import mesh as dmesh
+from dolfinx.fem import petsc as fem_petsc
+from petsc4py import PETSc
+
+#: dolfinx's version as a tuple of integers, e.g. (0, 9, 0)
+DOLFINX_VERSION: tuple[int, ...] = tuple(int(part) for part in dolfinx.__version__.split(".")[:3] if part.isdigit())
+#: the API of dolfinx 0.5/0.6 (ufl elements, AdjacencyList dofmaps, Function.vector)
+LEGACY = DOLFINX_VERSION < (0, 7)
+
+if LEGACY:
+    Form = fem.FormMetaClass
+    DirichletBC = fem.DirichletBCMetaClass
+    MeshTags = dmesh.MeshTagsMetaClass
+else:
+    import basix.ufl
+
+    Form = fem.Form
+    DirichletBC = fem.DirichletBC
+    MeshTags = dmesh.MeshTags
+
+Shape = tuple[int, ...]
+
+
+# --- elements and function spaces -----------------------------------------------------------------
+
+def element(family: str, cell: str, degree: int, shape: Shape = ()) -> Any:
+    """A finite element: ``family`` ("Lagrange", "DG", ...) of ``degree`` on ``cell`` ("tetrahedron"),
+    scalar (shape ()), vector ((3,)) or tensor ((3, 3))."""
+    shape = tuple(shape)
+    if not LEGACY:
+        return basix.ufl.element(family, cell, degree, shape=shape or None)
+    ucell = getattr(ufl, cell)
+    if shape == ():
+        return ufl.FiniteElement(family, ucell, degree)
+    if len(shape) == 1:
+        return ufl.VectorElement(family, ucell, degree, dim=shape[0])
+    return ufl.TensorElement(family, ucell, degree, shape=shape)
+
+
+def mixed_element(elements: Sequence[Any]) -> Any:
+    """The mixed element of several elements (e.g. Taylor-Hood: vector P2 and scalar P1)."""
+    if LEGACY:
+        return ufl.MixedElement(list(elements))
+    return basix.ufl.mixed_element(list(elements))
+
+
+def quadrature_element(cell: str, degree: int, shape: Shape = ()) -> Any:
+    """Values at the points of the default quadrature rule of ``degree`` (basix's, which the forms use)."""
+    shape = tuple(shape)
+    if not LEGACY:
+        return basix.ufl.quadrature_element(cell, value_shape=shape, scheme="default", degree=degree)
+    ucell = getattr(ufl, cell)
+    if shape == ():
+        return ufl.FiniteElement("Quadrature", ucell, degree, quad_scheme="default")
+    if len(shape) == 1:
+        return ufl.VectorElement("Quadrature", ucell, degree, dim=shape[0], quad_scheme="default")
+    return ufl.TensorElement("Quadrature", ucell, degree, shape=shape, quad_scheme="default")
+
+
+def function_space(msh: dmesh.Mesh, family: Any, degree: int | None = None, shape: Shape = ()) -> fem.FunctionSpace:
+    """A function space on ``msh``: ``function_space(msh, "Lagrange", 1, (3,))``, or of an element made
+    here (``function_space(msh, mixed_element([...]))``)."""
+    if degree is not None:
+        family = element(family, cell_name(msh), degree, shape)
+    if LEGACY:
+        return fem.FunctionSpace(msh, family)
+    return fem.functionspace(msh, family)
+
+
+def quadrature_space(msh: dmesh.Mesh, degree: int, shape: Shape = ()) -> fem.FunctionSpace:
+    """Values at the quadrature points of the default rule of ``degree`` (quadrature-point state)."""
+    return function_space(msh, quadrature_element(cell_name(msh), degree, shape))
+
+
+def quadrature_points(msh: dmesh.Mesh, degree: int) -> np.ndarray:
+    """Reference points of basix's default rule of ``degree`` on the mesh's cell (the rule the forms and
+    quadrature_space use)."""
+    import basix
+
+    points, _ = basix.make_quadrature(getattr(basix.CellType, cell_name(msh)), degree)
+    return points
+
+
+def cell_name(msh: dmesh.Mesh) -> str:
+    """The cell's name, e.g. "tetrahedron"."""
+    return msh.ufl_cell().cellname() if LEGACY else msh.topology.cell_name()
+
+
+# --- meshes and tags ----------------------------------------------------------------------------------
+
+def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 1) -> dmesh.Mesh:
+    """A tetrahedral mesh with Lagrange geometry of ``degree`` (cells in dolfinx's node order);
+    every rank but the one holding the data passes empty arrays."""
+    gdim = 3
+    if LEGACY:
+        domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, degree))
+    else:
+        domain = ufl.Mesh(basix.ufl.element("Lagrange", "tetrahedron", degree, shape=(gdim,)))
+    return dmesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), np.asarray(points, dtype=np.float64), domain)
+
+
+def meshtags_from_input(msh: dmesh.Mesh, dim: int, entities: np.ndarray, values: np.ndarray) -> MeshTags:
+    """Mesh tags of entities given by their input node numbers on any rank (distributed here)."""
+    entities = np.asarray(entities, dtype=np.int64)
+    values = np.asarray(values, dtype=np.int32)
+    msh.topology.create_connectivity(dim, 0)
+    if LEGACY:
+        from dolfinx import cpp
+
+        local, local_values = cpp.io.distribute_entity_data(msh._mesh, dim, entities, values)
+        adjacency = cpp.graph.AdjacencyList_int32(local)
+    else:
+        from dolfinx import graph, io
+
+        local, local_values = io.distribute_entity_data(msh, dim, entities, values)
+        adjacency = graph.adjacencylist(np.asarray(local, dtype=np.int32))
+    return dmesh.meshtags_from_entities(msh, dim, adjacency, np.asarray(local_values, dtype=np.int32))
+
+
+def cell_dofs(dofmap: Any) -> np.ndarray:
+    """A dofmap (a space's, or the geometry's) as a (num_cells, dofs_per_cell) array."""
+    table = dofmap.list if hasattr(dofmap, "list") else dofmap
+    if isinstance(table, np.ndarray):
+        return table
+    return table.array.reshape(table.num_nodes, -1)
+
+
+def geometry_dofs(msh: dmesh.Mesh) -> np.ndarray:
+    """The geometry dofmap: (num_cells, nodes_per_cell) indices into ``msh.geometry.x``."""
+    return cell_dofs(msh.geometry.dofmap)
+
+
+def colliding_cells(msh: dmesh.Mesh, points: np.ndarray) -> Any:
+    """The cells (local indices, an AdjacencyList per point) that contain each point."""
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    tdim = msh.topology.dim
+    if LEGACY:
+        tree = geometry.BoundingBoxTree(msh, tdim)
+        candidates = geometry.compute_collisions(tree, points)
+    else:
+        tree = geometry.bb_tree(msh, tdim)
+        candidates = geometry.compute_collisions_points(tree, points)
+    return geometry.compute_colliding_cells(msh, candidates, points)
+
+
+# --- evaluation, PETSc --------------------------------------------------------------------------------
+
+def evaluate(expression: fem.Expression, msh: dmesh.Mesh, cells: np.ndarray) -> np.ndarray:
+    """An Expression's values on local cells: (len(cells), points * value size)."""
+    cells = np.asarray(cells, dtype=np.int32)
+    if LEGACY:
+        return expression.eval(cells)
+    return expression.eval(msh, cells)
+
+
+def petsc_vector(function: fem.Function) -> PETSc.Vec:
+    """The PETSc vector that shares a Function's memory (owned and ghost entries)."""
+    return function.vector if LEGACY else function.x.petsc_vec
+
+
+def apply_lifting(b: PETSc.Vec, forms: list[Any], bcs: list[list[Any]], x0: list[PETSc.Vec] | None = None,
+                  alpha: float = 1.0) -> None:
+    """b -= alpha A (g - x0) at the Dirichlet dofs of each (form, bcs) (dolfinx's apply_lifting)."""
+    key = "scale" if LEGACY else "alpha"
+    fem_petsc.apply_lifting(b, forms, bcs=bcs, x0=x0 or [], **{key: alpha})
+
+
+def set_bc(b: PETSc.Vec, bcs: list[Any], x0: PETSc.Vec | None = None, alpha: float = 1.0) -> None:
+    """b = alpha (g - x0) at the Dirichlet dofs (dolfinx's set_bc)."""
+    key = "scale" if LEGACY else "alpha"
+    fem_petsc.set_bc(b, bcs, x0, **{key: alpha})
+
+
+# --- provenance ---------------------------------------------------------------------------------------
+
+def versions() -> dict[str, str]:
+    """The versions a result was computed with: dolfinx, PETSc, UFL, basix, numpy, Python, the OS
+    release, and the project's git revision when the checkout has one."""
+    import basix
+
+    petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
+    out = {"dolfinx": dolfinx.__version__, "petsc": petsc, "ufl": ufl.__version__, "basix": basix.__version__,
+           "numpy": np.__version__, "python": platform.python_version(), "os": _os_release()}
+    revision = git_revision()
+    if revision:
+        out["git_revision"] = revision
+    return out
+
+
+def _os_release() -> str:
+    try:
+        for line in Path("/etc/os-release").read_text().splitlines():
+            if line.startswith("PRETTY_NAME="):
+                return line.split("=", 1)[1].strip('"')
+    except OSError:
+        pass
+    return platform.platform()
+
+
+def git_revision() -> str | None:
+    """The project's git commit (with "-dirty" when the work tree has changes), or None."""
+    root = Path(__file__).resolve().parents[1]
+    if not (root / ".git").exists():
+        return None
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("-dirty" if dirty else "")
