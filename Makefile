@@ -49,6 +49,7 @@ test: test-serial test-mpi
 
 lint: setup
 	$(PY) -m ruff check forms model meshes tests benchmarks notebooks examples
+	$(VENV)/bin/lint-imports
 
 # Five runs and the verify references of every law on this release, from inputs shared by both
 # CI legs (tests/release_data.py); compare-releases checks debian12/ against debian13/.

@@ -13,7 +13,7 @@
 (b) Newton iterations per load step of examples/twisting_bar.toml with its material
     swapped for each law (equivalent small-strain moduli), output files disabled.
     The forms are compiled by an untimed warm-up first; the wall time is that of
-    model.run.run (set-up with a warm JIT cache, load steps, probes, reactions).
+    model.pipeline.run (set-up with a warm JIT cache, load steps, probes, reactions).
 
     python benchmarks/assembly.py [--quick] [--laws stvk corotated] [--json out.json]
     mpirun -n 2 python benchmarks/assembly.py --quick
@@ -54,9 +54,9 @@ import meshes  # noqa: E402
 from model import compat  # noqa: E402
 from model.config import parse  # noqa: E402
 from model.domain import build_domain  # noqa: E402
+from model.errors import SolveFailed  # noqa: E402
+from model.pipeline import build, run  # noqa: E402
 from model.problem import ElasticityProblem  # noqa: E402
-from model.run import SolveFailed, run  # noqa: E402
-from model.setup import build  # noqa: E402
 
 TWISTING_BAR = ROOT / "examples" / "twisting_bar.toml"
 E, NU = 1.0e6, 0.3

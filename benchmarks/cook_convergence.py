@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT))
 from mpi4py import MPI  # noqa: E402
 
 from model.config import parse  # noqa: E402
-from model.run import run  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 REFERENCE = 6.9083
 

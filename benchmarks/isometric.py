@@ -3,7 +3,7 @@
     PYTHONPATH=. OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/isometric.py [--quick]
 
 Prints a Markdown table: gmsh size, cells, dofs, Newton iterations per load step, time to
-solution (model.run.run, forms compiled by an untimed warm-up on the coarsest mesh, so the JIT
+solution (model.pipeline.run, forms compiled by an untimed warm-up on the coarsest mesh, so the JIT
 cache is warm), time in set-up (mesh, fibre Laplace solve, forms), mid-belly bulge, belly volume
 change and tendon force at full activation. The Newton iteration counts must not grow with the
 refinement (the consistent tangent converges quadratically at every size). Asserts nothing.
@@ -24,8 +24,8 @@ sys.path.insert(0, str(ROOT))
 from mpi4py import MPI  # noqa: E402
 
 from model.config import parse  # noqa: E402
-from model.muscle_experiments import isometric_curves  # noqa: E402
-from model.run import run  # noqa: E402
+from model.experiments.muscle import isometric_curves  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 
 def main() -> None:

@@ -9,9 +9,9 @@ shear vary along it), P1, quadrature degree 2, loaded in --steps equal steps of 
 residual with Dirichlet rows zeroed:
 
 (a) Newton, exact tangent, MUMPS LU (the default solver);
-(b) Newton, projected tangent (model.tangent: per-point PSD projection of dP/dF), MUMPS LU and
+(b) Newton, projected tangent (model.solvers.tangent: per-point PSD projection of dP/dF), MUMPS LU and
     CG + GAMG (rigid-body near null space); also the exact tangent with CG + GAMG, for contrast;
-(c) Projective Dynamics (model.projective_dynamics): local polar step + global solve with the
+(c) Projective Dynamics (model.solvers.projective_dynamics): local polar step + global solve with the
     constant matrix, factorised once (MUMPS LU).
 
 Times: wall time of the load stepping (forms compiled by an untimed warm-up, set-up excluded),
@@ -45,10 +45,10 @@ for path in (ROOT, ROOT / "tests"):
 
 from model import compat  # noqa: E402
 from model.config import parse  # noqa: E402
-from model.loadstepping import StepRecord, step_loads  # noqa: E402
-from model.projective_dynamics import ProjectiveDynamicsSolver  # noqa: E402
-from model.setup import build  # noqa: E402
-from model.solver import NewtonSolver  # noqa: E402
+from model.pipeline import build  # noqa: E402
+from model.solvers.loadstepping import StepRecord, step_loads  # noqa: E402
+from model.solvers.newton import NewtonSolver  # noqa: E402
+from model.solvers.projective_dynamics import ProjectiveDynamicsSolver  # noqa: E402
 
 TARGETS = ROOT / "tests" / "test_projected_tangent.py"
 PROBES = {"end_centre": [2.0, 0.25, 0.25], "end_corner": [2.0, 0.5, 0.5], "middle_corner": [1.0, 0.0, 0.5]}

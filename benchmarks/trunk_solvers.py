@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from model.config import parse  # noqa: E402
-from model.run import SolveFailed, run  # noqa: E402
+from model.errors import SolveFailed  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 CASES = [
     ("exact, bt", "exact", {"snes_linesearch_type": "bt"}),

@@ -44,7 +44,7 @@ SIZE = (0.08, 0.08, 0.30)
 class Muscle:
     """An influence region: a spindle around the axis origin -> insertion, radius end -> belly -> end."""
 
-    # (a plain class: model.targets loads this file without registering it in sys.modules, which
+    # (a plain class: model.config.userfiles loads this file without registering it in sys.modules, which
     # dataclasses need)
     def __init__(self, name: str, origin: tuple[float, float, float], insertion: tuple[float, float, float],
                  belly_radius: float, end_radius: float) -> None:

@@ -211,3 +211,13 @@ def contact_pressure(g: Scalar, k: float | Expr, pressure: Scalar = 0.0) -> Scal
 def sliding_energy(g: Expr, k: float | Expr) -> Expr:
     """psi = (k/2) g^2: holds a surface on the obstacle's surface from both sides, free to slide along it."""
     return 0.5 * k * g**2
+
+
+def axis_of(normal: np.ndarray, key: str) -> tuple[int, float]:
+    """(j, s) with normal = s e_j (to 1e-12), else ValueError naming ``key``."""
+    j = int(np.argmax(np.abs(normal)))
+    off = np.delete(np.abs(normal), j)
+    if np.any(off > 1e-12):
+        raise ValueError(f"{key}: method vi needs a plane normal along a coordinate axis (+-x, +-y, +-z), "
+                         f"got {[float(v) for v in normal]}")
+    return j, float(np.sign(normal[j]))

@@ -58,8 +58,9 @@ def main(argv: list[str] | None = None) -> int:
     _configure_logging()
     if args.command == "verify":
         return _verify(args)
-    from model.config import ConfigError, load
-    from model.run import SolveFailed, run
+    from model.config import load
+    from model.errors import ConfigError, SolveFailed
+    from model.pipeline import run
 
     if args.command == "run":
         try:
@@ -96,7 +97,7 @@ def _verify(args: argparse.Namespace) -> int:
     from model import verify
 
     if args.verify_command == "seeds":
-        from model.seeds import run_seeds
+        from model.verify.seeds import run_seeds
 
         return run_seeds(args.json)
     try:

@@ -69,9 +69,9 @@ except ImportError:  # plots are optional
 import meshio  # noqa: E402
 from _pictures import cell_fibre_state, render, small_png, surface_cut  # noqa: E402
 
-from model.bones import HingeMotion  # noqa: E402
+from forms.motions import HingeMotion  # noqa: E402
 from model.config import parse  # noqa: E402
-from model.run import run  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 

@@ -69,7 +69,7 @@ import meshio  # noqa: E402
 from _pictures import render  # noqa: E402
 
 from model.config import parse  # noqa: E402
-from model.run import run  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 

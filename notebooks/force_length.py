@@ -32,7 +32,7 @@
 # ($\sigma_{max}$ = 300 kPa, $P_1$ = 0.05, $P_2$ = 6.6, $l_{ofl}$ = 1, $l^*$ = 1.4).
 #
 # Both experiments hold the body at a length, then activate it at that length
-# (`model.muscle_experiments`): the load factor $t$ goes 0 → 0.5 stretching the body passively
+# (`model.experiments.muscle`): the load factor $t$ goes 0 → 0.5 stretching the body passively
 # to $l$ times its length, 0.5 → 1 ramping $\alpha$ from 0 to 1. The *active force* is the end
 # reaction at $t = 1$ minus the one at $t = 0.5$, the *passive force* the reaction at $t = 0.5$.
 #
@@ -75,8 +75,8 @@ import meshio  # noqa: E402
 from _pictures import deformation_gradients, render  # noqa: E402
 
 from model.config import parse  # noqa: E402
-from model.muscle_experiments import active_stress, f_active, forces, with_stretch  # noqa: E402
-from model.run import run  # noqa: E402
+from model.experiments.muscle import active_stress, f_active, forces, with_stretch  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 

@@ -56,7 +56,7 @@ except ImportError:  # plots are optional
     plt = None
 
 from model.config import load  # noqa: E402
-from model.guided import bounding_box_pins, error_table, run_stage1, run_stage2  # noqa: E402
+from model.experiments.guided import bounding_box_pins, error_table, run_stage1, run_stage2  # noqa: E402
 
 # %% [markdown]
 # ## Stage 1: attachments drive the bar, targets are recorded
@@ -131,7 +131,7 @@ if plt is not None:
 import meshio  # noqa: E402
 from _pictures import deformation_gradients, render, small_png  # noqa: E402
 
-from model.guided import polar_stretch  # noqa: E402
+from model.experiments.guided import polar_stretch  # noqa: E402
 
 shown = [n for n in np.unique(np.round(np.linspace(0, len(results) - 1, 5)[1:]).astype(int))]
 panels = []

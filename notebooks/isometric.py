@@ -42,7 +42,7 @@
 # exponential curve $\sigma_{tendon}(\bar\lambda)$ and no active term. Fibres: a Laplace field from
 # the origin disk to the insertion disk through belly and tendons, so they follow the spindle.
 #
-# **What we measure** (`model.muscle_experiments.isometric_curves`): per load step the
+# **What we measure** (`model.experiments.muscle.isometric_curves`): per load step the
 # activation, the *bulge* (the x displacement of a point on the belly's surface at mid-belly,
 # (14.5 mm, 0, 70 mm)), the belly's volume change and the axial force the insertion reaction
 # exerts (the tendon force). Then, from the last step's results, the fibre stretch along the
@@ -77,8 +77,8 @@ import meshio  # noqa: E402
 from _pictures import cell_fibre_state, render, small_png, surface_cut  # noqa: E402
 
 from model.config import parse  # noqa: E402
-from model.muscle_experiments import active_stress, isometric_curves  # noqa: E402
-from model.run import run  # noqa: E402
+from model.experiments.muscle import active_stress, isometric_curves  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 MAGNIFY = 20.0  # displacements in the outline plot and the picture

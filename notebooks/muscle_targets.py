@@ -69,7 +69,7 @@ import meshio  # noqa: E402
 from _pictures import deformation_gradients, render, small_png  # noqa: E402
 
 from model.config import load  # noqa: E402
-from model.run import run  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 spec = importlib.util.spec_from_file_location("muscle_targets", ROOT / "examples" / "muscle_targets.py")
 muscles = importlib.util.module_from_spec(spec)

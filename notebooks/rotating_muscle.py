@@ -53,9 +53,9 @@ try:
 except ImportError:  # plots are optional
     plt = None
 
-from model.bones import HingeMotion  # noqa: E402
+from forms.motions import HingeMotion  # noqa: E402
 from model.config import parse  # noqa: E402
-from model.run import run  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 raw = tomllib.loads((ROOT / "examples" / "rotating_muscle.toml").read_text())

@@ -60,7 +60,7 @@ except ImportError:  # plots are optional
 import meshes  # noqa: E402
 from meshes.topology import signed_volumes  # noqa: E402
 from model.config import load  # noqa: E402
-from model.run import run  # noqa: E402
+from model.pipeline import run  # noqa: E402
 
 spec = importlib.util.spec_from_file_location("trunk_targets", ROOT / "examples" / "trunk_targets.py")
 targets = importlib.util.module_from_spec(spec)

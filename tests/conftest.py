@@ -39,7 +39,7 @@ def example(name: str) -> dict[str, Any]:
 def run_raw(raw: dict[str, Any], out: Path) -> dict[str, Any]:
     """Check and run a configuration given as a dict; returns the summary."""
     from model.config import parse
-    from model.run import run
+    from model.pipeline import run
 
     return run(parse(raw, EXAMPLES), out)
 

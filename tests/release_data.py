@@ -69,7 +69,7 @@ def _mesh_file(name: str, raw: dict[str, Any], inputs: Path, comm: MPI.Comm) -> 
 
 def run_configurations(inputs: Path, out: Path, comm: MPI.Comm) -> None:
     from model.config import parse
-    from model.run import run
+    from model.pipeline import run
 
     for name, raw in configurations().items():
         raw = copy.deepcopy(raw)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import example, run_raw
 
-from model.bones import HingeMotion
+from forms.motions import HingeMotion
 
 RAW = example("arm_flexion")
 MESH = RAW["mesh"]

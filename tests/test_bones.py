@@ -1,4 +1,4 @@
-"""Bones (model.bones): rigid motions against time, attachments, sliding on moving obstacles.
+"""Bones (model.problem.bones, forms.motions): rigid motions against time, attachments, sliding on moving obstacles.
 
 Rotations are checked against scipy.spatial.transform (an independent implementation of
 Rodrigues' formula and of slerp); attachments and sliding against closed forms:
@@ -21,22 +21,13 @@ from scipy.spatial.transform import Rotation, Slerp
 
 import forms
 import meshes
+from forms.motions import Bone, HingeMotion, Stationary, TransformTable, axis_angle, rotation_log, rotation_matrix
 from forms.obstacles import Capsule, Plane
-from model.bones import (
-    Bone,
-    HingeMotion,
-    Stationary,
-    TransformTable,
-    add_sliding,
-    attach,
-    axis_angle,
-    rotation_log,
-    rotation_matrix,
-)
 from model.domain import build_domain
-from model.loadstepping import step_loads
 from model.problem import ElasticityProblem
-from model.solver import NewtonSolver
+from model.problem.bones import add_sliding, attach
+from model.solvers.loadstepping import step_loads
+from model.solvers.newton import NewtonSolver
 
 LAW = {"E": 1.0e4, "nu": 0.3}
 

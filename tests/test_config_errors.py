@@ -4,7 +4,7 @@ The contract (shared/design/run-contract.md): "an unknown key, a wrong type, a
 missing region or boundary name, or a value out of range stops the run with a
 one-line error that names the key". Messages read ``KEY: explanation``. Pure
 configuration errors come from model.config.parse; names that need the mesh
-(regions, boundaries, probes, material coverage) from model.setup.build, which is
+(regions, boundaries, probes, material coverage) from model.pipeline.build, which is
 collective: every rank raises the same error.
 """
 
@@ -23,8 +23,9 @@ from conftest import EXAMPLES, ROOT, example, serial_only
 from mpi4py import MPI
 
 import meshes
-from model.config import ConfigError, load, parse
-from model.setup import build
+from model.config import load, parse
+from model.errors import ConfigError
+from model.pipeline import build
 
 Raw = dict[str, Any]
 

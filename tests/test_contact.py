@@ -1,4 +1,5 @@
-"""Contact with rigid obstacles (model.contact, forms.obstacles): penalty, augmented Lagrangian (Uzawa), VI.
+"""Contact with rigid obstacles (model.problem.contact, model.solvers.contact, forms.obstacles): penalty,
+augmented Lagrangian (Uzawa), VI.
 
 Closed form (homogeneous block): a unit cube, neo-Hookean, xmin/ymin on sliders, zmin resting on a
 rigid plane z = 0 that moves up by delta (a transform table) against zmax held at u_z = 0: uniaxial
@@ -24,23 +25,16 @@ from scipy.optimize import brentq
 
 import forms
 import meshes
+from forms.motions import TransformTable, axis_angle
 from forms.obstacles import Capsule, Plane, Sphere, gap, penalty_energy
 from model import compat
-from model.bones import TransformTable, axis_angle
-from model.config import ConfigError
-from model.contact import (
-    DIVERGED_UZAWA_MAX_IT,
-    AugmentedLagrangianContact,
-    PenaltyContact,
-    VIContact,
-    build_contact,
-    contact_report,
-    make_contact_solver,
-    parse_contact,
-)
+from model.config.contact import parse_contact
 from model.domain import build_domain
-from model.loadstepping import step_loads
+from model.errors import ConfigError
 from model.problem import ElasticityProblem
+from model.problem.contact import AugmentedLagrangianContact, PenaltyContact, VIContact, build_contact, contact_report
+from model.solvers.contact import DIVERGED_UZAWA_MAX_IT, make_contact_solver
+from model.solvers.loadstepping import step_loads
 
 log = logging.getLogger(__name__)
 

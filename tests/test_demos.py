@@ -29,7 +29,7 @@ import meshes
 from forms import check_shape_targets
 from meshes.topology import signed_volumes
 from model.config import parse
-from model.guided import (
+from model.experiments.guided import (
     CellDeformation,
     FrameTargets,
     aligned_error,
@@ -38,9 +38,9 @@ from model.guided import (
     run_stage1,
     run_stage2,
 )
-from model.loadstepping import StepRecord, step_loads
-from model.setup import build
-from model.solver import NewtonSolver
+from model.pipeline import build
+from model.solvers.loadstepping import StepRecord, step_loads
+from model.solvers.newton import NewtonSolver
 
 
 def example_module(name: str) -> ModuleType:

@@ -1,4 +1,4 @@
-"""Implicit elastodynamics (model.dynamics): M a + D v + f_int(u) = f_ext(t).
+"""Implicit elastodynamics (model.solvers.dynamics): M a + D v + f_int(u) = f_ext(t).
 
 - Every scheme follows, in the modal coordinate of the first mode, its own discrete solution of the
   modal equation q'' + (a_M + b_K w^2) q' + w^2 q = 0 (2e-4).
@@ -40,12 +40,12 @@ from petsc4py import PETSc
 import forms
 import meshes
 from model import compat
-from model.config import ConfigError
-from model.domain import build_domain
-from model.dynamics import Dynamics, DynamicsSpec, TimeStepRecord, parse_dynamics, step_time
-from model.measurements import Probes
+from model.config.dynamics import DynamicsSpec, parse_dynamics
+from model.domain import Probes, build_domain
+from model.errors import ConfigError
 from model.problem import ElasticityProblem
-from model.solver import NewtonSolver, SolveResult
+from model.solvers.dynamics import Dynamics, TimeStepRecord, step_time
+from model.solvers.newton import NewtonSolver, SolveResult
 
 E, NU, RHO = 1.0e3, 0.3, 1.0
 BAR = {"size": (1.0, 0.2, 0.1), "cells": (8, 2, 1)}  # first mode: bending across the thin side

@@ -9,7 +9,7 @@ from mpi4py import MPI
 import meshes
 from model import compat
 from model.domain import build_domain
-from model.fibres import FibreField, unit_vectors
+from model.fields.fibres import FibreField, unit_vectors
 
 
 def domain_of(data):

@@ -31,9 +31,9 @@ def test_gives_up_instead_of_crawling(shared_tmp) -> None:
     """A solver that only manages tiny increments must stop once the increment falls below
     nominal / 2^max_cutbacks, even when failures alternate with successes."""
     from model.config import parse
-    from model.loadstepping import step_loads
-    from model.setup import build
-    from model.solver import NewtonSolver
+    from model.pipeline import build
+    from model.solvers.loadstepping import step_loads
+    from model.solvers.newton import NewtonSolver
 
     raw = example("uniaxial")
     raw["boundary"][3]["value"] = [3.0e4, 0.0, 0.0]

@@ -18,9 +18,9 @@ import forms
 import meshes
 from forms.kinematics import deformation_gradient
 from model.domain import build_domain
-from model.loadstepping import step_loads
 from model.problem import ElasticityProblem
-from model.solver import NewtonSolver
+from model.solvers.loadstepping import step_loads
+from model.solvers.newton import NewtonSolver
 
 LAW = forms.make_law("neo_hookean", E=1.0e3, nu=0.3)
 

@@ -19,8 +19,9 @@ from mpi4py import MPI
 
 import meshes
 from meshes.box import BOX_FACES
-from model.config import ConfigError, parse
-from model.setup import build
+from model.config import parse
+from model.errors import ConfigError
+from model.pipeline import build
 
 LEFT, RIGHT = 1, 2  # region tags of the split box
 

@@ -15,7 +15,7 @@ from conftest import example, run_raw
 from mpi4py import MPI
 
 from model.config import parse
-from model.muscle_experiments import active_stress, forces, isometric_curves, with_stretch
+from model.experiments.muscle import active_stress, forces, isometric_curves, with_stretch
 
 
 def shared_dir(factory: pytest.TempPathFactory, name: str) -> Path:

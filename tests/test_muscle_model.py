@@ -14,8 +14,9 @@ import pytest
 from conftest import example, run_raw
 from test_muscle_law import MUSCLE, TENDON, muscle_dF2, tendon_dF2
 
-from model.config import ConfigError, parse
-from model.setup import build
+from model.config import parse
+from model.errors import ConfigError
+from model.pipeline import build
 
 
 def stretched_block(law: str, params: dict, stretch: float, alpha: float | None) -> dict:

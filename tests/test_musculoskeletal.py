@@ -14,8 +14,9 @@ from closed_form import principal_stress
 from conftest import example, run_raw
 from scipy.optimize import brentq
 
-from model.config import ConfigError, parse
-from model.setup import build
+from model.config import parse
+from model.errors import ConfigError
+from model.pipeline import build
 
 
 def neo_hookean_compression(axial: float, params: dict) -> float:

@@ -8,9 +8,9 @@ from conftest import example
 from mpi4py import MPI
 
 from model.config import parse
-from model.loadstepping import step_loads
-from model.setup import build
-from model.solver import NewtonSolver
+from model.pipeline import build
+from model.solvers.loadstepping import step_loads
+from model.solvers.newton import NewtonSolver
 
 G = np.array([[0.10, 0.05, -0.02], [0.03, -0.08, 0.04], [-0.05, 0.02, 0.12]])
 c = np.array([0.01, -0.02, 0.03])

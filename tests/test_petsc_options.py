@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from conftest import example, run_raw
 
-from model.config import ConfigError
+from model.errors import ConfigError
 
 
 def uniaxial(options: dict) -> dict:

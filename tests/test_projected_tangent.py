@@ -20,12 +20,13 @@ from petsc4py import PETSc
 
 import forms
 import meshes
-from model.config import ConfigError, parse
+from model.config import parse
 from model.domain import build_domain
+from model.errors import ConfigError
+from model.fields.targets import TargetField
 from model.problem import ElasticityProblem
-from model.solver import NewtonSolver
-from model.tangent import ProjectedTangent
-from model.targets import TargetField
+from model.solvers.newton import NewtonSolver
+from model.solvers.tangent import ProjectedTangent
 
 HERE = Path(__file__).resolve()
 

@@ -20,12 +20,13 @@ from test_projected_tangent import bar_config, bending_targets, box_problem, fin
 
 import forms
 import meshes
-from model.config import ConfigError, parse
+from model.config import parse
 from model.domain import build_domain
-from model.loadstepping import step_loads
+from model.errors import ConfigError
+from model.fields.targets import TargetField
 from model.problem import ElasticityProblem
-from model.projective_dynamics import ProjectiveDynamicsSolver
-from model.targets import TargetField
+from model.solvers.loadstepping import step_loads
+from model.solvers.projective_dynamics import ProjectiveDynamicsSolver
 
 
 def test_projective_dynamics_reaches_the_newton_solution(shared_tmp: Path) -> None:

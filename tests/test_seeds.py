@@ -17,7 +17,7 @@ import pytest
 from conftest import ROOT, environment, serial_only
 from mpi4py import MPI
 
-from model import seeds
+from model.verify import seeds
 from model.verify import deformation_samples, field_samples
 
 AGREE = {

@@ -13,11 +13,12 @@ from test_jacobian import residual
 import forms
 import meshes
 from model import compat
-from model.config import ConfigError, parse
+from model.config import parse
 from model.domain import build_domain
+from model.errors import ConfigError
+from model.fields.targets import TargetField
+from model.pipeline import build
 from model.problem import ElasticityProblem
-from model.setup import build
-from model.targets import TargetField
 
 TARGET = [[1.2, 0.0, 0.0], [0.0, 0.9, 0.0], [0.0, 0.0, 1.05]]
 

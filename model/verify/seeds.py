@@ -505,7 +505,7 @@ class OneCell:
 
     Residual r(u; v) = P(F) : grad v dx with P = law.stress (forms/), Jacobian = ufl.derivative,
     P1 displacement, one quadrature point (the integrands are constant for affine u), polar
-    rotations through model.polar_field.PolarField as in the simulations. r = dW/du, the
+    rotations through model.fields.polar.PolarField as in the simulations. r = dW/du, the
     negative of the forces G of eq. 4.5.
     """
 
@@ -514,7 +514,7 @@ class OneCell:
         from dolfinx import fem
 
         import forms
-        from model.polar_field import PolarField
+        from model.fields.polar import PolarField
 
         self.mesh = compat.create_mesh(MPI.COMM_SELF, np.array([[0, 1, 2, 3]], dtype=np.int64), TET)
         self.space = compat.function_space(self.mesh, "Lagrange", 1, (3,))

@@ -8,7 +8,7 @@ so the Jacobian is always evaluated at the iterate SNES asks for.
 (SNESVISetVariableBounds; for the VI solvers ``snes_type = "vinewtonrsls"``, e.g. contact).
 
 ``tangent = "projected"`` replaces the consistent tangent by its per-quadrature-point
-positive semidefinite projection (model.tangent, the "modified Newton" of Klar et al. 2020):
+positive semidefinite projection (model.solvers.tangent, the "modified Newton" of Klar et al. 2020):
 the residual is unchanged, the Newton matrices are positive semidefinite, so CG with
 algebraic multigrid (``ksp_type = "cg"``, ``pc_type = "gamg"``) can solve them. For the
 displacement formulation the matrix carries the rigid-body modes as its near null space
@@ -46,7 +46,7 @@ DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "pc_factor_mat_solver_type": "mumps",
 }
 
-#: Jacobians NewtonSolver can use: the consistent one, or its PSD projection (model.tangent).
+#: Jacobians NewtonSolver can use: the consistent one, or its PSD projection (model.solvers.tangent).
 TANGENTS = ("exact", "projected")
 
 _counter = itertools.count()
@@ -133,7 +133,7 @@ class NewtonSolver:
     """SNES on the residual and Jacobian forms of a problem, with a unique options prefix.
 
     ``tangent``: "exact" (the consistent Jacobian, ufl.derivative of the residual) or
-    "projected" (model.tangent.ProjectedTangent; displacement formulation only).
+    "projected" (model.solvers.tangent.ProjectedTangent; displacement formulation only).
     """
 
     def __init__(self, problem: ElasticityProblem, options: dict[str, str | int | float | bool] | None = None,
@@ -146,7 +146,7 @@ class NewtonSolver:
         self.tangent = tangent
         self.projected = None
         if tangent == "projected":
-            from model.tangent import ProjectedTangent
+            from model.solvers.tangent import ProjectedTangent
 
             self.projected = ProjectedTangent(problem)
             self.residual_form = fem.form(problem.residual_form)  # the exact Jacobian is never compiled
@@ -176,7 +176,7 @@ class NewtonSolver:
         unknown = [k for k in unused_options(self.prefix, self.user_options) if not read_later(k)]
         if unknown:
             self._delete_options()
-            from model.config import ConfigError
+            from model.errors import ConfigError
 
             raise ConfigError(f"solver.petsc_options.{unknown[0]}: PETSc does not use this option with the "
                               f"solver it configures (misspelt, or for another solver type)")

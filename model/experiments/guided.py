@@ -22,7 +22,7 @@ held normal to that plane) can be met by every shape after a suitable rigid moti
 not strain it: stage 2 lands on stage 1's shapes moved rigidly. The check aligns the two by the
 best rigid motion (Kabsch) and reports max |x2 - x1| over the vertices relative to max |u1|.
 
-    python -m model.guided examples/guided_stage1.toml --out results/guided [--pins "A; B; C"]
+    python -m model.experiments.guided examples/guided_stage1.toml --out results/guided [--pins "A; B; C"]
 """
 
 from __future__ import annotations
@@ -46,14 +46,15 @@ from petsc4py import PETSc
 
 import forms
 from model import compat
-from model.config import ConfigError, RunConfig
+from model.config import RunConfig
 from model.domain import Domain
-from model.loadstepping import StepRecord, step_loads
-from model.output import ResultWriter, write_json_atomic
+from model.errors import ConfigError
+from model.fields.targets import TargetField
+from model.output.writer import ResultWriter, write_json_atomic
+from model.pipeline import build
 from model.problem import DirichletBoundary, ElasticityProblem
-from model.setup import build
-from model.solver import NewtonSolver
-from model.targets import TargetField
+from model.solvers.loadstepping import StepRecord, step_loads
+from model.solvers.newton import NewtonSolver
 
 log = logging.getLogger(__name__)
 
@@ -419,7 +420,7 @@ def _parse_pins(text: str) -> list[tuple[Point, tuple[int, ...]]]:
 def main(argv: Sequence[str] | None = None) -> int:
     from model.config import load
 
-    parser = argparse.ArgumentParser(prog="python -m model.guided", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m model.experiments.guided", description=__doc__.splitlines()[0])
     parser.add_argument("config", type=Path, help="stage 1 configuration (attachments, S = I)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default: output.dir/..)")
     parser.add_argument("--pins", default=None, help="3-2-1 pins 'A; B; C' (default: bounding-box corners)")

@@ -29,7 +29,7 @@ from forms import Law
 from forms.kinematics import cauchy_stress, deformation_gradient, von_mises
 from model import compat
 from model.domain import Domain
-from model.polar_field import PolarField
+from model.fields.polar import PolarField
 
 log = logging.getLogger(__name__)
 

@@ -7,7 +7,7 @@ Fields written each converged step:
   volume, which works for quadrature-point state such as polar rotations too);
 - the problem's per-cell input fields (``fibre_direction`` a0, ``activation`` alpha) when present.
 The VTU files (meshio) are written on rank 0 from the whole mesh gathered there;
-the PNG is rendered from the last VTU (model.render, in a subprocess).
+the PNG is rendered from the last VTU (model.output.render, in a subprocess).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from dolfinx.io import XDMFFile
 from petsc4py import PETSc
 
 from model import compat
+from model.output.render import render_in_subprocess
 from model.problem import ElasticityProblem
-from model.render import render_in_subprocess
 
 log = logging.getLogger(__name__)
 

@@ -10,7 +10,7 @@ Reference values come from the project's own laws (forms/) through dolfinx: each
 sample is one cell of a mesh of N disjoint tetrahedra, F (and S) are per-cell
 fields, and psi, P and A = diff(P, F) are dolfinx Expressions evaluated at the
 cell's one quadrature point. Laws with a polar rotation use the same
-quadrature-point machinery as the simulations (model.polar_field.PolarField).
+quadrature-point machinery as the simulations (model.fields.polar.PolarField).
 
 Errors in ``check`` are per sample, in the Frobenius norm of the quantity:
 abs = ||user_n - ref_n||, rel = abs / max(||ref_n||, floor), floor = 1e-6 max_m ||ref_m|| (so that a
@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 import forms
 from forms.law import Law
 from model import compat
-from model.polar_field import PolarField
+from model.fields.polar import PolarField
 
 QUANTITIES = ("psi", "P", "A")
 

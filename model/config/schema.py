@@ -5,7 +5,7 @@ type, value out of range, unknown name) raises ConfigError with a one-line
 message that starts with the offending key, e.g.
 ``material[0].nu: 0.5 is out of range, must be in (-1, 0.5)``.
 Names of regions and boundaries are checked against the mesh later
-(model.setup), still before any solve.
+(model.pipeline.build), still before any solve.
 """
 
 from __future__ import annotations
@@ -20,11 +20,7 @@ from typing import Any
 import numpy as np
 
 import forms
-
-
-class ConfigError(ValueError):
-    """A configuration error; the message names the offending key."""
-
+from model.errors import ConfigError
 
 BOUNDARY_TYPES = ("displacement", "traction", "pressure", "attached", "sliding")
 FORMULATIONS = ("displacement", "mixed")
@@ -50,7 +46,7 @@ class DiscretizationConfig:
 
 @dataclass(frozen=True)
 class FibreConfig:
-    """[material].fibres: where a0 comes from (model.fibres).
+    """[material].fibres: where a0 comes from (model.fields.fibres).
 
     type = "constant": the unit vector from point ``origin`` to point ``insertion``;
     type = "laplace": grad phi / |grad phi|, phi = 0 on surface ``origin``, 1 on surface ``insertion``,
@@ -98,14 +94,14 @@ class BoneConfig:
     """[[bone]]: a rigid body with a prescribed motion and, optionally, a shape (an analytic obstacle)."""
 
     name: str
-    motion: Any  # model.bones.HingeMotion | TransformTable | Stationary
+    motion: Any  # forms.motions.HingeMotion | TransformTable | Stationary
     obstacle: Any = None  # forms.obstacles.Plane | Sphere | Capsule
     shape: dict[str, Any] = field(default_factory=dict)  # the raw shape keys, for contacts on this bone
 
 
 @dataclass(frozen=True)
 class ContactConfig:
-    spec: Any  # model.contact.ContactSpec
+    spec: Any  # model.config.contact.ContactSpec
     bone: str | None = None
 
 
@@ -162,7 +158,7 @@ class RunConfig:
     solver: SolverConfig = field(default_factory=SolverConfig)
     bones: tuple[BoneConfig, ...] = ()
     contacts: tuple[ContactConfig, ...] = ()
-    dynamics: Any = None  # model.dynamics.DynamicsSpec
+    dynamics: Any = None  # model.config.dynamics.DynamicsSpec
 
 
 # --- small checkers: each raises ConfigError naming the key ---------------------------------------
@@ -294,7 +290,7 @@ def _discretization(raw: dict[str, Any]) -> DiscretizationConfig:
 
 def _target_source(raw: dict[str, Any], key: str, base: Path) -> Any:
     """The shape-target source of a material: S (3x3), S_file (.npy, per cell) or S_function (FILE.py:NAME)."""
-    from model.targets import load_target_function
+    from model.config.userfiles import load_function
 
     given = [k for k in ("S", "S_file", "S_function") if k in raw]
     if len(given) > 1:
@@ -314,7 +310,7 @@ def _target_source(raw: dict[str, Any], key: str, base: Path) -> Any:
     path = Path(_string(value, f"{key}.{name}"))
     if name == "S_function":
         try:
-            return load_target_function(str(value), base)
+            return load_function(str(value), base)
         except Exception as err:  # noqa: BLE001 - any import error is reported against the key
             _fail(f"{key}.S_function", str(err).splitlines()[0] if str(err) else type(err).__name__)
     if not path.is_absolute():
@@ -513,7 +509,7 @@ def _boundary(raw: dict[str, Any], key: str) -> BoundaryConfig:
         if not isinstance(expr, list) or len(expr) != len(comps):
             _fail(f"{key}.expression", f"must be an array of {len(comps)} strings (one per component)")
         exprs = tuple(_string(e, f"{key}.expression[{i}]") for i, e in enumerate(expr))
-        from model.expressions import compile_expression
+        from model.config.expressions import compile_expression
 
         for i, e in enumerate(exprs):
             try:
@@ -650,7 +646,7 @@ def _bone(raw: dict[str, Any], key: str) -> BoneConfig:
     """[[bone]]: name; motion hinge = {axis, point, angles = [[t, degrees], ...]} or transform = {times,
     rotations (rotation vectors, radians, or 3x3 matrices), translations}; none: the bone stays put;
     optional shape: obstacle = plane | sphere | capsule with its keys (the shape at t = 0)."""
-    from model.bones import HingeMotion, Stationary, TransformTable
+    from forms.motions import HingeMotion, Stationary, TransformTable
 
     shape_keys = {k for keys in _SHAPE_KEYS.values() for k in keys}
     _known(raw, {"name", "hinge", "transform", "obstacle", *shape_keys}, key)
@@ -713,7 +709,7 @@ def _bone(raw: dict[str, Any], key: str) -> BoneConfig:
 def _contact(raw: dict[str, Any], key: str, bones: dict[str, BoneConfig]) -> ContactConfig:
     """[[contact]] (run-contract.md) plus ``bone``: the obstacle moves with that bone (and takes its shape
     when the table gives no ``obstacle``)."""
-    from model.contact import parse_contact
+    from model.config.contact import parse_contact
 
     raw = dict(_table(raw, key))
     bone = raw.pop("bone", None)
@@ -785,7 +781,7 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
             _fail(f"bone[{i}].name", f"{n!r} is used twice")
     contacts = tuple(_contact(c, f"contact[{i}]", dict(zip(names, bones)))
                      for i, c in enumerate(_tables(raw.get("contact", []), "contact")))
-    from model.dynamics import parse_dynamics
+    from model.config.dynamics import parse_dynamics
 
     dynamics = parse_dynamics(raw.get("dynamics", {}))
     config = RunConfig(
@@ -807,13 +803,24 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
     return config
 
 
-def load(path: str | Path) -> RunConfig:
-    """Read and check a TOML configuration file."""
+def read(path: str | Path) -> dict[str, Any]:
+    """The parsed TOML document of a configuration file (ConfigError naming the file when unreadable)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"config: no such file: {path}")
     try:
-        raw = tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"config: {path}: invalid TOML: {err}") from None
+
+
+def load(path: str | Path, overrides: dict[str, Any] | None = None) -> RunConfig:
+    """Read and check a TOML configuration file, with optional overrides {dotted.key: value}
+    (model.config.overrides); paths in it are relative to the file's folder."""
+    from model.config.overrides import apply
+
+    path = Path(path)
+    raw = read(path)
+    if overrides:
+        raw = apply(raw, overrides)
     return parse(raw, path.parent)

@@ -8,7 +8,7 @@ total potential is
 and min over R in SO(3) per quadrature point gives back psi(F). Pi is quadratic in u for
 fixed R, so block-coordinate descent alternates
 
-- local step: R0 = polar(F S) at every quadrature point (model.polar_field.PolarField.update,
+- local step: R0 = polar(F S) at every quadrature point (model.fields.polar.PolarField.update,
   the machinery the Newton solver uses), which minimises Pi over R;
 - global step: the minimiser over u with R fixed, the linear problem
   K u = int 2 mu (R0 S - I) : grad v dx + lambda f_ext,   K = sum_r int_r 2 mu_r grad du : grad v dx,
@@ -22,7 +22,7 @@ u_new = u - K^-1 r(u) (exactly the linear problem above; at Dirichlet dofs the i
 0, the iterate having been given the Dirichlet values first). Each iteration therefore
 costs one polar update, one residual assembly and one pair of triangular solves, and the
 residual it computes is the one the convergence test uses: the residual of the Newton
-solver (model.solver), Dirichlet rows zeroed. Pi decreases monotonically (block-coordinate
+solver (model.solvers.newton), Dirichlet rows zeroed. Pi decreases monotonically (block-coordinate
 descent) for dead loads; a follower pressure is lagged (evaluated at the current iterate),
 which keeps the fixed point but not the monotonicity.
 """
@@ -43,7 +43,7 @@ from petsc4py import PETSc
 from forms.shape_target import ShapeTarget
 from model import compat
 from model.problem import ElasticityProblem
-from model.solver import REASONS, SolveResult
+from model.solvers.newton import REASONS, SolveResult
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +86,7 @@ def check_projective_dynamics(problem: ElasticityProblem) -> None:
 
 
 class ProjectiveDynamicsSolver:
-    """Local/global iterations for one load step (drop-in for model.solver.NewtonSolver in step_loads).
+    """Local/global iterations for one load step (drop-in for model.solvers.newton.NewtonSolver in step_loads).
 
     ``options``: ``pd_max_iterations`` (global steps per load step), ``pd_rtol`` (stop when
     ||r|| <= pd_rtol ||r_0||, r_0 the residual at the start of the load step once the Dirichlet

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from model.solver import NewtonSolver, SolveResult
+from model.solvers.newton import NewtonSolver, SolveResult
 
 log = logging.getLogger(__name__)
 

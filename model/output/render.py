@@ -1,6 +1,6 @@
 """PNG of a deformed body coloured by von Mises stress, rendered off screen by pyvista.
 
-Run as ``python -m model.render RESULT.vtu OUT.png [TITLE]``. It runs in its own
+Run as ``python -m model.output.render RESULT.vtu OUT.png [TITLE]``. It runs in its own
 process on purpose: dolfinx loads its libraries with RTLD_GLOBAL, after which
 VTK's std::regex instantiations bind to ABI-incompatible copies and VTK crashes
 while formatting the scalar bar. A process that never imports dolfinx is safe.
@@ -56,7 +56,7 @@ def render(vtu: Path, png: Path, title: str = "") -> None:
 
 def render_in_subprocess(vtu: Path, png: Path, title: str = "", timeout: float = 300.0) -> None:
     """Run ``render`` in a fresh interpreter; raises RuntimeError with its stderr on failure."""
-    proc = subprocess.run([sys.executable, "-m", "model.render", str(vtu), str(png), title],
+    proc = subprocess.run([sys.executable, "-m", "model.output.render", str(vtu), str(png), title],
                           capture_output=True, text=True, timeout=timeout)
     if proc.returncode != 0 or not png.is_file():
         raise RuntimeError(f"rendering {png.name} failed: {proc.stderr.strip().splitlines()[-1:] or proc.returncode}")

@@ -1,0 +1,8 @@
+"""The computational domain: meshes read or generated, distributed with named regions and boundaries,
+and probes at reference points."""
+
+from model.domain.distribute import Domain, build_domain
+from model.domain.probes import Probes
+from model.domain.readers import exterior_triangles, load_mesh_data, make_domain, read_meshio
+
+__all__ = ["Domain", "Probes", "build_domain", "exterior_triangles", "load_mesh_data", "make_domain", "read_meshio"]

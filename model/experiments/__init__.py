@@ -1,0 +1,1 @@
+"""Experiments built on runs: guided simulation (shape targeting) and the muscle experiments."""

@@ -1,0 +1,466 @@
+"""The pipeline of one run: config -> domain -> fields -> problem -> solver -> steps -> output.
+
+    build(config)   the Domain (model.domain), the fields on it (fibres, activation, shape targets:
+                    model.fields), the ElasticityProblem with every load, boundary condition, bone tie
+                    and contact term (model.problem), and the probes. Every name the configuration
+                    uses (regions, boundaries, probes inside the body, full and non-overlapping material
+                    coverage) is checked here and raises ConfigError naming the key, before any solve.
+    run(config)     the solver [solver] asks for (model.solvers), load steps 0 -> 1 with cut-back, or
+                    time steps of a [dynamics] scheme, and after every attempted step summary.json,
+                    the XDMF/VTU time series and finally the PNG (model.output).
+
+summary.json is rewritten after every attempted step, so a failed run keeps what it did. Each
+converged step records probes, reactions and the strain energy (plus contact, sliding and, in a
+dynamic run, time and kinetic energy); a failed attempt records its SNES reason and is followed by a
+cut-back. In a dynamic run the "load factor" passed to expressions, activation curves and bone
+motions is the time t, and constant loads are scaled by min(t / load_ramp, 1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+import forms
+from model import compat
+from model.config import RunConfig
+from model.config.expressions import compile_expression, uses_load_factor
+from model.domain import Domain, Probes, make_domain
+from model.errors import ConfigError, SolveFailed
+from model.fields.activation import ActivationField
+from model.fields.fibres import FibreField, solve_laplace
+from model.fields.targets import TargetField
+from model.output.writer import ResultWriter, write_json_atomic
+from model.problem import ElasticityProblem
+from model.problem.measurements import Volumes, reactions
+from model.solvers.loadstepping import step_loads
+from model.solvers.newton import NewtonSolver
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Setup:
+    domain: Domain
+    problem: ElasticityProblem
+    probes: Probes
+    targets: list[TargetField]
+    fibres: fem.Function | None = None
+    activation: ActivationField | None = None
+    contacts: list[Any] = field(default_factory=list)  # model.problem.contact objects
+    sliding: list[Any] = field(default_factory=list)  # model.problem.bones.SlidingConstraint
+
+
+def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
+    for i, m in enumerate(config.materials):
+        spec = m.fibres
+        if spec is None or spec.type != "laplace":
+            continue
+        for k in ("origin", "insertion"):
+            name = getattr(spec, k)
+            if name not in domain.boundaries:
+                raise ConfigError(f"material[{i}].fibres.{k}: no boundary named {name!r} in the mesh "
+                                  f"(boundaries: {', '.join(sorted(domain.boundaries)) or 'none'})")
+        for j, r in enumerate(spec.regions):
+            if r != "all" and r not in domain.regions:
+                raise ConfigError(f"material[{i}].fibres.regions[{j}]: no region named {r!r} in the mesh "
+                                  f"(regions: {', '.join(['all', *sorted(domain.regions)])})")
+
+
+def _fibre_fields(config: RunConfig, domain: Domain) -> fem.Function | None:
+    """One DG0 vector Function a0 for all fibre materials, each setting its region's cells."""
+    if not any(m.fibres is not None for m in config.materials):
+        return None
+    function = fem.Function(compat.function_space(domain.mesh, "DG", 0, (3,)), name="fibre_direction")
+    potentials: dict[tuple[str, str, tuple[str, ...]], fem.Function] = {}
+    for i, m in enumerate(config.materials):
+        spec = m.fibres
+        if spec is None:
+            continue
+        field = FibreField(domain, m.region, function=function)
+        key = f"material[{i}].fibres"
+        try:
+            if spec.type == "constant":
+                field.constant(spec.origin, spec.insertion)  # type: ignore[arg-type]
+            elif spec.type == "laplace":
+                regions = spec.regions or (m.region,)
+                which = (str(spec.origin), str(spec.insertion), tuple(regions))
+                if which not in potentials:
+                    try:
+                        potentials[which] = solve_laplace(domain, *which)
+                    except ValueError as err:
+                        raise ConfigError(f"{key}.regions: {err}; name the regions the fibres run through "
+                                          "(fibres.regions)") from None
+                field.laplace(which[0], which[1], potential=potentials[which])
+            else:
+                try:
+                    array = np.load(spec.file, allow_pickle=False)  # type: ignore[arg-type]
+                except (OSError, ValueError) as err:
+                    raise ConfigError(f"{key}.file: cannot read {spec.file}: {str(err).splitlines()[0]}") from None
+                field.from_cell_array(array)
+        except ValueError as err:
+            if isinstance(err, ConfigError):
+                raise
+            where = {"constant": "insertion", "laplace": "regions", "file": "file"}[spec.type]
+            raise ConfigError(f"{key}.{where}: {err}") from None
+    return function
+
+
+def _check_names(config: RunConfig, domain: Domain) -> None:
+    regions = sorted(domain.regions)
+    boundaries = sorted(domain.boundaries)
+    for i, m in enumerate(config.materials):
+        if m.region != "all" and m.region not in domain.regions:
+            raise ConfigError(f"material[{i}].region: no region named {m.region!r} in the mesh "
+                              f"(regions: {', '.join(['all', *regions])})")
+    for i, b in enumerate(config.boundaries):
+        if b.on not in domain.boundaries:
+            raise ConfigError(f"boundary[{i}].on: no boundary named {b.on!r} in the mesh "
+                              f"(boundaries: {', '.join(boundaries) or 'none'})")
+    for i, f in enumerate(config.body_forces):
+        if f.region != "all" and f.region not in domain.regions:
+            raise ConfigError(f"body_force[{i}].region: no region named {f.region!r} in the mesh "
+                              f"(regions: {', '.join(['all', *regions])})")
+    comm = domain.mesh.comm
+    tdim = domain.mesh.topology.dim
+    num_owned = domain.mesh.topology.index_map(tdim).size_local
+    count = np.zeros(num_owned, dtype=np.int32)
+    owner = np.full(num_owned, -1)
+    for i, m in enumerate(config.materials):
+        cells = domain.region_cells(m.region)
+        cells = cells[cells < num_owned]
+        clash = comm.allreduce(int(np.max(owner[cells], initial=-1)), op=MPI.MAX)
+        if clash >= 0:
+            raise ConfigError(f"material[{i}].region: {m.region!r} overlaps the region of material[{clash}]")
+        owner[cells] = i
+        count[cells] += 1
+    uncovered = comm.allreduce(int(np.sum(count == 0)), op=MPI.SUM)
+    if uncovered:
+        raise ConfigError(f"material: {uncovered} cells are in no material's region (use region = \"all\" "
+                          f"or cover regions {', '.join(regions)})")
+
+
+def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
+    """Domain, problem with all loads and boundary conditions, and probes of a configuration."""
+    domain = make_domain(config.mesh, comm)
+    _check_names(config, domain)
+    probes = Probes(domain.mesh, {p.name: p.point for p in config.probes})
+    if probes.missing:  # the same on every rank (reduced over ranks)
+        i = [p.name for p in config.probes].index(probes.missing[0])
+        raise ConfigError(f"probe[{i}].point: {list(config.probes[i].point)} is outside the mesh")
+    _check_fibre_names(config, domain)
+    disc = config.discretization
+    fibres = _fibre_fields(config, domain)
+    activation = None
+    if any("alpha" in forms.FIELDS.get(m.law.name, ()) for m in config.materials):
+        activation = ActivationField(domain)
+    materials, targets = [], []
+    for i, m in enumerate(config.materials):
+        law = m.law
+        if fibres is not None and "a0" in forms.FIELDS.get(law.name, ()):
+            law = dataclasses.replace(law, a0=fibres)
+        if activation is not None and "alpha" in forms.FIELDS.get(law.name, ()):
+            activation.add(m.region, m.activation)
+            law = dataclasses.replace(law, alpha=activation.function)
+        if "S" in forms.FIELDS.get(law.name, ()):
+            source = m.fields.get("S")
+            key = "S_function" if callable(source) else "S_file" if np.ndim(source) == 3 else "S"
+            try:
+                target = TargetField(domain.mesh, domain.region_cells(m.region), source)
+            except (ValueError, forms.ParameterError) as err:
+                raise ConfigError(f"material[{i}].{key}: {err}") from None
+            law = dataclasses.replace(law, S=target.function)
+            targets.append(target)
+        materials.append((m.region, law))
+    problem = ElasticityProblem(domain, materials, disc.degree, disc.quadrature_degree, disc.formulation)
+    for target in targets:
+        if target.procedural:
+            problem.add_load_hook(target.update)
+    if fibres is not None:
+        problem.cell_fields["fibre_direction"] = fibres
+    if activation is not None:
+        problem.add_load_hook(activation.update)
+        problem.cell_fields["activation"] = activation.function
+    bones = {b.name: b for b in config.bones}
+    sliding = []
+    for i, b in enumerate(config.boundaries):
+        if b.type == "attached":
+            from model.problem.bones import attach
+
+            attach(problem, b.on, bones[b.bone].motion)  # type: ignore[index]
+        elif b.type == "sliding":
+            from model.problem.bones import add_sliding
+
+            bone = bones[b.bone]  # type: ignore[index]
+            sliding.append(add_sliding(problem, b.on, bone.obstacle, b.penalty, bone.motion,  # type: ignore[arg-type]
+                                       b.quadrature_degree))
+        elif b.type == "displacement":
+            try:
+                if b.value:
+                    problem.add_dirichlet(b.on, b.components, b.value, points=b.points)
+                else:
+                    problem.add_dirichlet(b.on, b.components, [compile_expression(e) for e in b.expression],
+                                          [uses_load_factor(e) for e in b.expression], points=b.points)
+            except ValueError as err:  # a point that is not a node of the boundary
+                j = int(str(err).split()[1]) if str(err).startswith("point ") else 0
+                raise ConfigError(f"boundary[{i}].points[{j}]: {err}") from None
+        elif b.type == "traction":
+            problem.add_traction(b.on, b.value)
+        else:
+            problem.add_pressure(b.on, b.value[0])
+    for f in config.body_forces:
+        problem.add_body_force(f.region, f.value)
+    contacts = []
+    if config.contacts:
+        from model.problem.contact import build_contact
+
+        for i, c in enumerate(config.contacts):
+            motion = bones[c.bone].motion if c.bone is not None else None
+            contacts.append(build_contact(problem, c.spec, motion, key=f"contact[{i}]"))
+    return Setup(domain, problem, probes, targets, fibres, activation, contacts, sliding)
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a run produced: its summary (as in summary.json), where its files are, and per-step series.
+
+    ``probes[name]`` and ``reactions[boundary]`` are arrays (converged steps, 3), ``load_factors`` and
+    ``energy`` arrays over the converged steps; ``files`` maps "summary", "xdmf", "png" and "vtu" (a
+    list) to the paths that exist.
+    """
+
+    summary: dict[str, Any]
+    directory: Path
+
+    @property
+    def status(self) -> str:
+        return str(self.summary["status"])
+
+    @property
+    def converged_steps(self) -> list[dict[str, Any]]:
+        return [s for s in self.summary["steps"] if s["converged"]]
+
+    @property
+    def load_factors(self) -> np.ndarray:
+        return np.array([s["load_factor"] for s in self.converged_steps])
+
+    @property
+    def energy(self) -> np.ndarray:
+        return np.array([s["energy"] for s in self.converged_steps])
+
+    @property
+    def probes(self) -> dict[str, np.ndarray]:
+        return self._series("probes")
+
+    @property
+    def reactions(self) -> dict[str, np.ndarray]:
+        return self._series("reactions")
+
+    def _series(self, key: str) -> dict[str, np.ndarray]:
+        steps = self.converged_steps
+        names = steps[0][key] if steps else {}
+        return {n: np.array([s[key][n] for s in steps]).reshape(len(steps), -1) for n in names}
+
+    @property
+    def files(self) -> dict[str, Any]:
+        d = self.directory
+        out: dict[str, Any] = {"summary": d / "summary.json", "vtu": sorted(d.glob("step_*.vtu"))}
+        for name, file in (("xdmf", d / "results.xdmf"), ("png", d / "deformed.png")):
+            if file.exists():
+                out[name] = file
+        return out
+
+
+def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None) -> Any:
+    """The solver [solver] asks for: NewtonSolver (exact or projected tangent), ProjectiveDynamicsSolver,
+    or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface)."""
+    solver = config.solver
+    if solver.method == "projective_dynamics":
+        from model.solvers.projective_dynamics import ProjectiveDynamicsSolver
+
+        options = {**config.petsc_options, "pd_max_iterations": solver.pd_max_iterations,
+                   "pd_rtol": solver.pd_rtol, "pd_atol": solver.pd_atol}
+        return ProjectiveDynamicsSolver(problem, options)
+    if contacts:
+        from model.solvers.contact import make_contact_solver
+
+        return make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent)
+    return NewtonSolver(problem, config.petsc_options, tangent=solver.tangent)
+
+
+def _dynamics(setup: Setup, config: RunConfig) -> Any:
+    """The time integrator of a dynamic run (before the solver: it adds inertia and damping terms)."""
+    from model.solvers.dynamics import Dynamics
+
+    spec = config.dynamics
+    problem = setup.problem
+    density = {m.region: m.density for m in config.materials}
+    problem.load_scale = spec.load_scale
+    dynamics = Dynamics(problem, density if "all" not in density else density["all"], spec.scheme,
+                        spec.rayleigh, spec.dt, rho_infinity=spec.rho_infinity)
+    return dynamics
+
+
+def _initial_equilibrium(setup: Setup, config: RunConfig) -> None:
+    """u_0 of a dynamic run = the quasi-static solution at t = 0 (before inertia is added to the forms).
+
+    Reached by continuation: the activation goes from 0 to its t = 0 values in loading.steps steps,
+    cut back on failure (a muscle activated at once from rest would invert elements in Newton's
+    first iterate).
+    """
+    problem = setup.problem
+    problem.load_scale = config.dynamics.load_scale
+    problem.set_load_factor(0.0)
+    activation = setup.activation
+    full = activation.function.x.array.copy() if activation is not None else None
+    solver = make_solver(problem, config, setup.contacts)
+    nominal = 1.0 / config.loading.steps
+    increment, current, cutbacks, result = nominal, 0.0, 0, None
+    while current < 1.0 - 1e-12:
+        target = min(current + increment, 1.0)
+        saved = problem.solution.x.array.copy()
+        if activation is not None:
+            activation.function.x.array[:] = target * full
+        problem.invalidate_state()
+        result = solver.solve()
+        if result.converged:
+            current, cutbacks = target, 0
+            increment = min(increment * config.loading.growth, nominal)
+            continue
+        problem.solution.x.array[:] = saved
+        cutbacks += 1
+        increment *= 0.5
+        if cutbacks > config.loading.max_cutbacks:
+            break
+    solver.destroy()
+    problem._forms = None  # the dynamic run compiles its own forms (inertia and damping added)
+    if result is None or current < 1.0 - 1e-12:
+        raise SolveFailed(f"the initial equilibrium (dynamics.initial = \"equilibrium\") failed at activation "
+                          f"fraction {target:.4g}: SNES reason {result.reason} ({result.reason_name})")
+    log.info("initial equilibrium reached (activation continuation)")
+
+
+def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
+    """Run a configuration; returns the summary (also written to OUT/summary.json).
+
+    Raises ConfigError before any solve on bad input, SolveFailed (after writing
+    the summary) when SNES fails beyond the allowed cut-backs.
+    """
+    start = time.perf_counter()
+    directory = Path(out) if out is not None else config.output.dir
+    setup = build(config, comm)
+    versions = comm.bcast(compat.versions() if comm.rank == 0 else None, root=0)
+    if comm.rank == 0:
+        log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
+    problem = setup.problem
+    dynamic = config.dynamics is not None and config.dynamics.is_dynamic
+    if dynamic and config.dynamics.initial == "equilibrium":
+        _initial_equilibrium(setup, config)
+    dynamics = _dynamics(setup, config) if dynamic else None
+    solver = make_solver(problem, config, setup.contacts)
+    writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png)
+    msh = setup.domain.mesh
+    imap = problem.space.dofmap.index_map
+    volumes = Volumes(problem)
+    summary: dict[str, Any] = {
+        "dofs": imap.size_global * problem.space.dofmap.index_map_bs,
+        "cells": msh.topology.index_map(msh.topology.dim).size_global,
+        "ranks": comm.size,
+        "region_volumes": volumes.reference,
+        "boundary_areas": volumes.areas,
+        "solver": {"method": config.solver.method, "tangent": config.solver.tangent},
+        "versions": versions,
+        "wall_time_s": 0.0,
+        "status": "running",
+        "steps": [],
+    }
+    if dynamic:
+        spec = config.dynamics
+        summary["dynamics"] = {"scheme": spec.scheme, "dt": spec.dt, "end_time": spec.end_time,
+                               "rayleigh": list(spec.rayleigh)}
+
+    def save() -> None:
+        summary["wall_time_s"] = time.perf_counter() - start
+        if comm.rank == 0:
+            write_json_atomic(directory / "summary.json", summary)
+
+    def record_step(t: float, r: Any, extra: dict[str, Any]) -> None:
+        step: dict[str, Any] = {
+            "load_factor": float(problem.load_factor.value) if dynamic else t,
+            **extra,
+            "newton_iterations": r.iterations,
+            "linear_iterations": r.linear_iterations,
+            "converged": r.converged,
+            "snes_reason": r.reason,
+            "snes_reason_name": r.reason_name,
+            "residual_norm": r.residual_norm,
+        }
+        if setup.activation is not None:
+            step["activation"] = setup.activation.values(t)
+        if r.converged:
+            step["energy"] = problem.total_energy()
+            if dynamics is not None:
+                step["kinetic_energy"] = dynamics.kinetic_energy()
+            step["volumes"] = volumes.current()
+            step["probes"] = setup.probes.evaluate(problem.displacement())
+            residual = solver.unconstrained_residual()
+            step["reactions"] = reactions(problem, residual)
+            residual.destroy()
+            if setup.contacts:
+                from model.problem.contact import contact_report
+
+                step["contact"] = contact_report(setup.contacts)
+            if setup.sliding:
+                step["sliding"] = {c.surface: {"max_gap": c.max_gap(), "force": c.force()} for c in setup.sliding}
+            writer.write_step(t)
+        summary["steps"].append(step)
+        save()
+        if comm.rank == 0:
+            n = len(summary["steps"])
+            status = "converged" if r.converged else f"FAILED ({r.reason_name}), cutting back"
+            what = "t" if dynamic else "load"
+            log.info("step %3d  %s %.4f  newton %2d  |R| %.3e  %s", n, what, t, r.iterations, r.residual_norm,
+                     status)
+
+    if dynamic:
+        from model.solvers.dynamics import step_time
+
+        problem.set_load_factor(0.0)
+        dynamics.initialize(time=0.0, load_factor=0.0)
+        save()
+        spec = config.dynamics
+        ok = step_time(solver, dynamics, spec.end_time, spec.dt,
+                       lambda rec: record_step(rec.time, rec.result, {"time": rec.time, "dt": rec.dt}),
+                       max_cutbacks=config.loading.max_cutbacks, growth=config.loading.growth)
+    else:
+        problem.set_load_factor(0.0)
+        save()
+        ok = step_loads(solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth,
+                        lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds}))
+    summary["status"] = "completed" if ok else "failed"
+    unused = getattr(solver, "unused_options", [])
+    if unused:
+        summary["unused_petsc_options"] = unused
+    what = "t" if dynamic else "load factor"
+    png = writer.write_png(f"{what} {problem.time:.3g}")
+    if png is not None:
+        summary["png"] = png.name
+    writer.close()
+    save()
+    solver.destroy()
+    if dynamics is not None:
+        dynamics.destroy()
+    if not ok:
+        last = summary["steps"][-1]
+        raise SolveFailed(f"SNES failed at {what} {last.get('time', last['load_factor']):.6g}: reason "
+                          f"{last['snes_reason']} ({last['snes_reason_name']}); results up to {what} "
+                          f"{problem.time:.6g} are in {directory}")
+    return summary
