@@ -1,4 +1,9 @@
-"""UFL energies and kinematics: pure functions of UFL expressions, no meshes, no solvers."""
+"""UFL energies and kinematics: pure functions of UFL expressions, no meshes, no solvers.
+
+The laws are listed once, in forms.registry (REGISTRY: name -> LawEntry with parameter metadata);
+LAWS, FIELDS and make_law below are views of it. A user's law from a file: resolve_law("FILE.py:psi")
+(forms.user_law).
+"""
 
 from __future__ import annotations
 
@@ -6,14 +11,14 @@ from typing import Any
 
 from forms.isotropic import Corotated, MooneyRivlin, NeoHookean, StVenantKirchhoff
 from forms.law import Law, ParameterError
+from forms.metadata import FIELD_MEANINGS, LawEntry, Parameter
 from forms.muscle import Muscle, Tendon
+from forms.registry import REGISTRY, laws_markdown, resolve_law
 from forms.shape_target import ShapeTarget, Volume, check_shape_targets
+from forms.user_law import UserLaw
 
 #: Law classes by their name in energies.md.
-LAWS: dict[str, type[Law]] = {
-    cls.name: cls
-    for cls in (StVenantKirchhoff, NeoHookean, MooneyRivlin, Corotated, ShapeTarget, Volume, Muscle, Tendon)
-}
+LAWS: dict[str, type[Law]] = {name: entry.law for name, entry in REGISTRY.items()}
 
 
 def make_law(name: str, **params: Any) -> Law:
@@ -23,9 +28,16 @@ def make_law(name: str, **params: Any) -> Law:
     return LAWS[name].from_parameters(**params)  # type: ignore[attr-defined]
 
 
-#: Fields a law takes besides its scalar parameters (energies.md): S, the shape target.
-FIELDS: dict[str, tuple[str, ...]] = {"shape_target": ("S",), "volume": ("S",), "muscle": ("a0", "alpha"),
-                                      "tendon": ("a0",)}
+#: Fields a law takes besides its scalar parameters (energies.md): S, the shape target; a0, the fibre
+#: direction; alpha, the activation (FIELD_MEANINGS).
+FIELDS: dict[str, tuple[str, ...]] = {name: entry.fields for name, entry in REGISTRY.items() if entry.fields}
 
-__all__ = ["FIELDS", "LAWS", "Law", "ParameterError", "make_law", "check_shape_targets", "Corotated", "MooneyRivlin",
-           "Muscle", "NeoHookean", "ShapeTarget", "StVenantKirchhoff", "Tendon", "Volume"]
+
+def law_fields(law: Law) -> tuple[str, ...]:
+    """The fields (S, a0, alpha) the law ``law`` takes: a built-in's from REGISTRY, a user law's from its file."""
+    entry = getattr(type(law), "entry", None)
+    return entry.fields if entry is not None else FIELDS.get(law.name, ())
+
+__all__ = ["FIELDS", "FIELD_MEANINGS", "LAWS", "Law", "LawEntry", "Parameter", "ParameterError", "REGISTRY",
+           "UserLaw", "law_fields", "make_law", "check_shape_targets", "laws_markdown", "resolve_law", "Corotated",
+           "MooneyRivlin", "Muscle", "NeoHookean", "ShapeTarget", "StVenantKirchhoff", "Tendon", "Volume"]

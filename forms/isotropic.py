@@ -9,7 +9,9 @@
 
 Each is W + (kappa/2) g^2 (forms.law): stvk g = tr E, kappa = lmbda;
 neo_hookean g = ln J, kappa = lmbda; mooney_rivlin g = ln J, kappa = 2K;
-corotated g = J - 1, kappa = lmbda.
+corotated g = J - 1, kappa = lmbda. The bulk parameter (lmbda, K) may be inf: the
+incompressible limit, g(F) = 0 exactly in the mixed formulation (incompressible
+neo-Hookean is mu with lmbda = inf; nu = 0.5 stays refused, (E, nu) give finite lmbda).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any, ClassVar
 import ufl
 
 from forms.kinematics import green_lagrange, isochoric_invariants, lame_parameters, right_cauchy_green
-from forms.law import Expr, Law, ParameterError, check_keys, require, require_finite
+from forms.law import Expr, Law, ParameterError, check_keys, require, require_bulk, require_finite
 
 
 def _lame_from(law: str, params: dict[str, Any]) -> dict[str, float]:
@@ -49,13 +51,15 @@ def _lame_from(law: str, params: dict[str, Any]) -> dict[str, float]:
 
 @dataclass(frozen=True)
 class _LameLaw(Law):
-    """A law parametrised by the Lame constants mu > 0, lmbda > -2 mu / 3."""
+    """A law parametrised by the Lame constants mu > 0, lmbda > -2 mu / 3 (or inf: incompressible)."""
 
     mu: float
     lmbda: float
+    bulk_parameter: ClassVar[str] = "lmbda"
 
     def __post_init__(self) -> None:
-        require_finite(self.name, mu=self.mu, lmbda=self.lmbda)
+        require_finite(self.name, mu=self.mu)
+        require_bulk(self.name, lmbda=self.lmbda)
         require(self.mu > 0, self.name, "mu", self.mu, "> 0")
         require(self.lmbda + 2.0 * self.mu / 3.0 > 0, self.name, "lmbda", self.lmbda, "> -2 mu / 3")
 
@@ -128,12 +132,14 @@ class MooneyRivlin(Law):
     """psi = c1 (Ibar1 - 3) + c2 (Ibar2 - 3) + K (ln J)^2 (Teran et al. 2003, no factor 1/2 on K)."""
 
     name: ClassVar[str] = "mooney_rivlin"
+    bulk_parameter: ClassVar[str] = "K"
     c1: float
     c2: float
     K: float
 
     def __post_init__(self) -> None:
-        require_finite(self.name, c1=self.c1, c2=self.c2, K=self.K)
+        require_finite(self.name, c1=self.c1, c2=self.c2)
+        require_bulk(self.name, K=self.K)
         require(self.c1 >= 0, self.name, "c1", self.c1, ">= 0")
         require(self.c2 >= 0, self.name, "c2", self.c2, ">= 0")
         require(self.c1 + self.c2 > 0, self.name, "c1", self.c1, "> 0 when c2 = 0")

@@ -11,6 +11,16 @@ and the mixed displacement-pressure formulation (Taylor-Hood), whose energy is
 
 stationary in p at p = kappa g(F), which gives back psi exactly.
 R is the polar rotation (forms.polar) for laws that need it, else unused.
+
+Exact incompressibility is the limit kappa = inf, given as the law's bulk parameter
+(``bulk_parameter``: lmbda, K or kappa) = inf. Then psi is undefined (only the constraint g(F) = 0
+remains) and the mixed energy loses its last term,
+
+    Pi(u, p) = W(F; R) + p g(F),        p the Lagrange multiplier of g(F) = 0,
+
+whose pressure equation is g(F) q dx = 0 (``pressure_residual``). ``energy`` and a stress without
+p refuse such a law (ValueError naming the parameter), so inf never reaches a form: only the mixed
+formulation can use it.
 """
 
 from __future__ import annotations
@@ -51,12 +61,22 @@ def require_finite(law: str, **values: float) -> None:
         require(ok, law, key, value, "a finite number")
 
 
+def require_bulk(law: str, **values: float) -> None:
+    """Every value is a real number, finite or +inf (a bulk parameter: inf is the incompressible limit)."""
+    for key, value in values.items():
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and (math.isfinite(value)
+                                                                                  or value == math.inf)
+        require(ok, law, key, value, "a finite number or inf (incompressible)")
+
+
 class Law(ABC):
     """A hyperelastic law psi(F) = W(F; R) + (kappa/2) g(F)^2 (see module docstring)."""
 
     name: ClassVar[str]
     #: True when W needs the polar rotation R of ``rotation_argument(F)``.
     needs_rotation: ClassVar[bool] = False
+    #: the parameter that sets kappa (lmbda, K or kappa); inf there is the incompressible limit
+    bulk_parameter: ClassVar[str] = "kappa"
 
     @abstractmethod
     def reduced_energy(self, F: Expr, R: Expr | None = None) -> Expr:
@@ -71,6 +91,19 @@ class Law(ABC):
     def bulk_penalty(self) -> float:
         """kappa, the penalty factor of (kappa/2) g(F)^2."""
 
+    @property
+    def incompressible(self) -> bool:
+        """True when kappa = inf: g(F) = 0 exactly, enforced by the mixed formulation's pressure."""
+        return math.isinf(self.bulk_penalty)
+
+    def require_compressible(self, what: str) -> None:
+        """ValueError naming the bulk parameter when kappa = inf (``what`` needs a finite kappa)."""
+        if self.incompressible:
+            value = getattr(self, self.bulk_parameter, self.bulk_penalty)
+            raise ValueError(f"{self.name}: {self.bulk_parameter} = {value!r} (incompressible) has no {what}: "
+                             "use the mixed formulation (formulation = 'mixed', Taylor-Hood), whose pressure "
+                             "enforces g(F) = 0 exactly")
+
     def rotation_argument(self, F: Expr) -> Expr:
         """M whose polar rotation R* the law uses (F unless a law says otherwise)."""
         return F
@@ -81,18 +114,41 @@ class Law(ABC):
         return ufl.diff(self.reduced_energy(Fv, R), Fv)
 
     def energy(self, F: Expr, R: Expr | None = None) -> Expr:
-        """psi(F) = W(F; R) + (kappa/2) g(F)^2."""
+        """psi(F) = W(F; R) + (kappa/2) g(F)^2 (ValueError when kappa = inf: see mixed_energy)."""
+        self.require_compressible("energy psi(F) (the penalty (kappa/2) g^2 is infinite)")
         g = self.volume_constraint(F)
         return self.reduced_energy(F, R) + 0.5 * self.bulk_penalty * g**2
+
+    def mixed_energy(self, F: Expr, p: Expr, R: Expr | None = None) -> Expr:
+        """Pi(u, p) density W(F; R) + p g(F) - p^2 / (2 kappa); the last term is absent when kappa = inf."""
+        self.require_mixed()
+        energy = self.reduced_energy(F, R) + p * self.volume_constraint(F)
+        return energy if self.incompressible else energy - p**2 / (2.0 * self.bulk_penalty)
+
+    def require_mixed(self) -> None:
+        """ValueError naming the bulk parameter when kappa = 0: the mixed formulation needs kappa > 0 (or inf)."""
+        if self.bulk_penalty == 0:
+            value = getattr(self, self.bulk_parameter, self.bulk_penalty)
+            raise ValueError(f"{self.name}: {self.bulk_parameter} = {value!r}: the mixed formulation needs "
+                             f"{self.bulk_parameter} > 0 (or inf for incompressible); with no volumetric term "
+                             "use the displacement formulation")
+
+    def pressure_residual(self, F: Expr, p: Expr) -> Expr:
+        """The mixed formulation's pressure equation dPi/dp: g(F) - p / kappa, or g(F) when kappa = inf."""
+        self.require_mixed()
+        g = self.volume_constraint(F)
+        return g if self.incompressible else g - p / self.bulk_penalty
 
     def stress(self, F: Expr, R: Expr | None = None, p: Expr | None = None) -> Expr:
         """First Piola-Kirchhoff stress P = dW/dF + p dg/dF, with p = kappa g(F) unless given.
 
-        With p = None this is dpsi/dF; with p the mixed field it is the stress of Pi(u, p).
+        With p = None this is dpsi/dF (ValueError when kappa = inf); with p the mixed field it is
+        the stress of Pi(u, p).
         """
         Fv = ufl.variable(F)
         g = self.volume_constraint(Fv)
         if p is None:
+            self.require_compressible("stress dpsi/dF without a pressure field")
             p = self.bulk_penalty * g
         return self.reduced_stress(F, R) + p * ufl.diff(g, Fv)
 

@@ -20,7 +20,7 @@ F2 is defined by its derivative with F2(1) = 0 (energies.md), s = lbar / l_ofl:
 The energy uses the closed-form antiderivatives (below, with UFL conditionals), so that UFL
 derives P and A exactly: F2 = sigma_max [Fp(s) - Fp(1/l_ofl) + alpha (Fa(s) - Fa(1/l_ofl))] with
 Fa(s) = int_0.4^s f_active, Fp(s) = int_1^s f_passive (muscle), and F2 = Ft(lbar) = int_1^lbar
-sigma_tendon (tendon). Mixed split (forms.law): g = ln J, kappa = 2K.
+sigma_tendon (tendon). Mixed split (forms.law): g = ln J, kappa = 2K (K = inf: incompressible, mixed only).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ import ufl
 
 from forms.isotropic import _lame_from
 from forms.kinematics import green_lagrange, isochoric_invariants, right_cauchy_green
-from forms.law import Expr, Law, ParameterError, check_keys, require, require_finite
+from forms.law import Expr, Law, ParameterError, check_keys, require, require_bulk, require_finite
 
 ISOTROPIC = ("mooney_rivlin", "stvk")
 
@@ -92,10 +92,12 @@ class _FibreLaw(Law):
     mu: float = 0.0
     lmbda: float = 0.0
     a0: Any = None  # UFL vector: unit fibre direction in the reference configuration
+    bulk_parameter: ClassVar[str] = "K"
 
     def _check_isotropic(self) -> None:
         require(self.isotropic in ISOTROPIC, self.name, "isotropic", self.isotropic, f"one of {', '.join(ISOTROPIC)}")
-        require_finite(self.name, c1=self.c1, c2=self.c2, K=self.K, mu=self.mu, lmbda=self.lmbda)
+        require_finite(self.name, c1=self.c1, c2=self.c2, mu=self.mu, lmbda=self.lmbda)
+        require_bulk(self.name, K=self.K)
         require(self.K > 0, self.name, "K", self.K, "> 0")
         if self.isotropic == "mooney_rivlin":
             require(self.c1 >= 0 and self.c2 >= 0, self.name, "c1" if self.c1 < 0 else "c2",

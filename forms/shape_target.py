@@ -9,6 +9,7 @@ theorem dW/dF = 2 mu (F - R* S) (R* minimises the first term); the residual is b
 from that stress, and UFL differentiates it with R* = R0 (I + [w]x) of forms.polar,
 whose first derivative is the exact dR*/dF: dP[dF] = 2 mu (dF - dR*[dF] S) + ...
 With kappa = 0 the law is `shape_target` alone; `volume` is the second term alone.
+kappa = inf is the incompressible limit J = det S (mixed formulation only, forms.law).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 import ufl
 
-from forms.law import Expr, Law, ParameterError, check_keys, require, require_finite
+from forms.law import Expr, Law, ParameterError, check_keys, require, require_bulk, require_finite
 
 
 def check_shape_targets(S: np.ndarray, where: str = "S", tol: float = 1e-10) -> np.ndarray:
@@ -62,7 +63,8 @@ class ShapeTarget(Law):
     S: Any = None  # UFL expression; identity when None
 
     def __post_init__(self) -> None:
-        require_finite(self.name, mu=self.mu, kappa=self.kappa)
+        require_finite(self.name, mu=self.mu)
+        require_bulk(self.name, kappa=self.kappa)
         require(self.mu > 0, self.name, "mu", self.mu, "> 0")
         require(self.kappa >= 0, self.name, "kappa", self.kappa, ">= 0")
 
@@ -110,7 +112,7 @@ class Volume(Law):
     S: Any = None
 
     def __post_init__(self) -> None:
-        require_finite(self.name, kappa=self.kappa)
+        require_bulk(self.name, kappa=self.kappa)
         require(self.kappa > 0, self.name, "kappa", self.kappa, "> 0")
 
     @classmethod

@@ -1,4 +1,5 @@
-"""Command line: ``python -m model run CONFIG [--out DIR]`` and ``python -m model verify emit|check|seeds``.
+"""Command line: ``python -m model run CONFIG [--out DIR]``, ``python -m model verify emit|check|seeds`` and
+``python -m model schema [--out FILE] [--markdown FILE]``.
 
 Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input.
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
@@ -54,7 +55,16 @@ def main(argv: list[str] | None = None) -> int:
     check_parser.add_argument("--rtol", type=float, default=1e-8)
     seeds_parser = vsub.add_parser("seeds", help="check the formulas printed in the seed documents")
     seeds_parser.add_argument("--json", type=Path, default=None)
+    schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
+                                   "generated from model.config")
+    schema_parser.add_argument("--out", type=Path, default=None,
+                               help="write the JSON Schema here (docs/config.schema.json; default: standard output "
+                                    "unless --markdown is given)")
+    schema_parser.add_argument("--markdown", type=Path, default=None,
+                               help="write the Markdown reference of every key here (docs/config.md)")
     args = parser.parse_args(argv)
+    if args.command == "schema":
+        return _schema(args)
     _configure_logging()
     if args.command == "verify":
         return _verify(args)
@@ -76,6 +86,18 @@ def main(argv: list[str] | None = None) -> int:
             last = summary["steps"][-1]
             print(f"done: {len(summary['steps'])} steps, {summary['dofs']} dofs, {summary['wall_time_s']:.1f} s; "
                   f"probes {last.get('probes', {})}")
+    return 0
+
+
+def _schema(args: argparse.Namespace) -> int:
+    from model.config.reference import render_markdown, schema_text
+
+    if args.out is not None:
+        args.out.write_text(schema_text())
+    elif args.markdown is None:
+        sys.stdout.write(schema_text())
+    if args.markdown is not None:
+        args.markdown.write_text(render_markdown())
     return 0
 
 

@@ -41,7 +41,7 @@ from model.fields.targets import TargetField
 from model.output.writer import ResultWriter, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.measurements import Volumes, reactions
-from model.solvers.loadstepping import step_loads
+from model.solvers.loadstepping import continuation, step_loads
 from model.solvers.newton import NewtonSolver
 
 log = logging.getLogger(__name__)
@@ -160,17 +160,17 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     disc = config.discretization
     fibres = _fibre_fields(config, domain)
     activation = None
-    if any("alpha" in forms.FIELDS.get(m.law.name, ()) for m in config.materials):
+    if any("alpha" in forms.law_fields(m.law) for m in config.materials):
         activation = ActivationField(domain)
     materials, targets = [], []
     for i, m in enumerate(config.materials):
         law = m.law
-        if fibres is not None and "a0" in forms.FIELDS.get(law.name, ()):
+        if fibres is not None and "a0" in forms.law_fields(law):
             law = dataclasses.replace(law, a0=fibres)
-        if activation is not None and "alpha" in forms.FIELDS.get(law.name, ()):
+        if activation is not None and "alpha" in forms.law_fields(law):
             activation.add(m.region, m.activation)
             law = dataclasses.replace(law, alpha=activation.function)
-        if "S" in forms.FIELDS.get(law.name, ()):
+        if "S" in forms.law_fields(law):
             source = m.fields.get("S")
             key = "S_function" if callable(source) else "S_file" if np.ndim(source) == 3 else "S"
             try:
@@ -322,29 +322,18 @@ def _initial_equilibrium(setup: Setup, config: RunConfig) -> None:
     activation = setup.activation
     full = activation.function.x.array.copy() if activation is not None else None
     solver = make_solver(problem, config, setup.contacts)
-    nominal = 1.0 / config.loading.steps
-    increment, current, cutbacks, result = nominal, 0.0, 0, None
-    while current < 1.0 - 1e-12:
-        target = min(current + increment, 1.0)
-        saved = problem.solution.x.array.copy()
+
+    def activate(fraction: float) -> None:
         if activation is not None:
-            activation.function.x.array[:] = target * full
+            activation.function.x.array[:] = fraction * full
         problem.invalidate_state()
-        result = solver.solve()
-        if result.converged:
-            current, cutbacks = target, 0
-            increment = min(increment * config.loading.growth, nominal)
-            continue
-        problem.solution.x.array[:] = saved
-        cutbacks += 1
-        increment *= 0.5
-        if cutbacks > config.loading.max_cutbacks:
-            break
+
+    outcome = continuation(solver, activate, config.loading.steps, config.loading.max_cutbacks,
+                           config.loading.growth, what="activation step")
     solver.destroy()
     problem._forms = None  # the dynamic run compiles its own forms (inertia and damping added)
-    if result is None or current < 1.0 - 1e-12:
-        raise SolveFailed(f"the initial equilibrium (dynamics.initial = \"equilibrium\") failed at activation "
-                          f"fraction {target:.4g}: SNES reason {result.reason} ({result.reason_name})")
+    if not outcome:
+        raise SolveFailed(f"the initial equilibrium (dynamics.initial = \"equilibrium\") failed: {outcome.reason}")
     log.info("initial equilibrium reached (activation continuation)")
 
 
@@ -446,6 +435,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         ok = step_loads(solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth,
                         lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds}))
     summary["status"] = "completed" if ok else "failed"
+    if not ok:
+        summary["failure"] = ok.reason
     unused = getattr(solver, "unused_options", [])
     if unused:
         summary["unused_petsc_options"] = unused
@@ -459,8 +450,5 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     if dynamics is not None:
         dynamics.destroy()
     if not ok:
-        last = summary["steps"][-1]
-        raise SolveFailed(f"SNES failed at {what} {last.get('time', last['load_factor']):.6g}: reason "
-                          f"{last['snes_reason']} ({last['snes_reason_name']}); results up to {what} "
-                          f"{problem.time:.6g} are in {directory}")
+        raise SolveFailed(f"{ok.reason}; results up to {what} {problem.time:.6g} are in {directory}")
     return summary

@@ -47,7 +47,6 @@
 # %%
 import os
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -69,9 +68,8 @@ except ImportError:  # plots are optional
 import meshio  # noqa: E402
 from _pictures import cell_fibre_state, render, small_png, surface_cut  # noqa: E402
 
+import model.config  # noqa: E402
 from forms.motions import HingeMotion  # noqa: E402
-from model.config import parse  # noqa: E402
-from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 
@@ -82,11 +80,11 @@ OUT.mkdir(parents=True, exist_ok=True)
 # feed the pictures).
 
 # %%
-raw = tomllib.loads((ROOT / "examples" / "arm_flexion.toml").read_text())
-raw["loading"]["steps"] = 12 if CI else 24
-raw["output"].update(png=False, xdmf=False, vtu=True)
-config = parse(raw, ROOT / "examples")
-summary = run(config, OUT)
+EXAMPLE = ROOT / "examples" / "arm_flexion.toml"
+raw = model.config.read(EXAMPLE)  # the document as written, for its bones, probes and contact settings
+config = model.load_config(EXAMPLE, overrides={"loading.steps": 12 if CI else 24, "output.png": False,
+                                               "output.xdmf": False, "output.vtu": True})
+summary = model.run(config, out=OUT).summary
 attempts = summary["steps"]
 steps = [s for s in attempts if s["converged"]]
 print(f"{summary['cells']} cells, {summary['dofs']} dofs, {len(steps)} steps ({len(attempts) - len(steps)} cut "

@@ -46,7 +46,6 @@
 # %%
 import os
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -68,8 +67,7 @@ except ImportError:  # plots are optional
 import meshio  # noqa: E402
 from _pictures import render  # noqa: E402
 
-from model.config import parse  # noqa: E402
-from model.pipeline import run  # noqa: E402
+import model.config  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 
@@ -77,9 +75,10 @@ OUT.mkdir(parents=True, exist_ok=True)
 # ## The run
 
 # %%
-raw = tomllib.loads((ROOT / "examples" / "arm_segment.toml").read_text())
-raw["output"].update(png=False, xdmf=False, vtu=True)
-summary = run(parse(raw, ROOT / "examples"), OUT)
+EXAMPLE = ROOT / "examples" / "arm_segment.toml"
+raw = model.config.read(EXAMPLE)  # the document as written, for its probes
+result = model.run(EXAMPLE, out=OUT, overrides={"output.png": False, "output.xdmf": False, "output.vtu": True})
+summary = result.summary
 steps = [s for s in summary["steps"] if s["converged"]]
 print(f"{summary['cells']} cells, {summary['dofs']} dofs, {len(steps)} steps, {summary['wall_time_s']:.1f} s, "
       f"Newton iterations per step: {[s['newton_iterations'] for s in steps]}")

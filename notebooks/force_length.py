@@ -52,7 +52,6 @@
 import math
 import os
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -74,9 +73,8 @@ except ImportError:  # plots are optional
 import meshio  # noqa: E402
 from _pictures import deformation_gradients, render  # noqa: E402
 
-from model.config import parse  # noqa: E402
+import model.config  # noqa: E402
 from model.experiments.muscle import active_stress, f_active, forces, with_stretch  # noqa: E402
-from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 
@@ -87,15 +85,16 @@ OUT.mkdir(parents=True, exist_ok=True)
 # displacement); each takes about a second.
 
 # %%
-cylinder_raw = tomllib.loads((ROOT / "examples" / "force_length_cylinder.toml").read_text())
+EXAMPLES = ROOT / "examples"
+cylinder_raw = model.config.read(EXAMPLES / "force_length_cylinder.toml")
 cylinder_raw["output"].update(png=False, xdmf=False, vtu=True)
-law = parse(cylinder_raw, ROOT / "examples").materials[0].law
+law = model.load_config(cylinder_raw, base=EXAMPLES).materials[0].law
 FULL_SWEEP = [0.45, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.45, 1.5, 1.55]
 stretches = [0.5, 0.8, 1.0, 1.2, 1.55] if CI else FULL_SWEEP
 cylinder = {}
 for stretch in stretches:
-    config = parse(with_stretch(cylinder_raw, stretch, "top", 0.04), ROOT / "examples")
-    summary = run(config, OUT / f"cylinder_{stretch}")
+    config = model.load_config(with_stretch(cylinder_raw, stretch, "top", 0.04), base=EXAMPLES)
+    summary = model.run(config, out=OUT / f"cylinder_{stretch}").summary
     passive, total, active = forces(summary, "top")
     area = summary["boundary_areas"]["top"]  # reference cross-section
     n_steps = len([s for s in summary["steps"] if s["converged"]])
@@ -216,7 +215,7 @@ if plt is not None:
 # Each run takes about half a minute.
 
 # %%
-fusiform_raw = tomllib.loads((ROOT / "examples" / "force_length_fusiform.toml").read_text())
+fusiform_raw = model.config.read(EXAMPLES / "force_length_fusiform.toml")
 fusiform_raw["output"].update(png=False, xdmf=False, vtu=True)
 fusiform_raw["probe"] += [{"name": "origin_junction", "point": [0.0, 0.0, 0.02]},
                           {"name": "insertion_junction", "point": [0.0, 0.0, 0.12]}]
@@ -248,7 +247,8 @@ edges = np.linspace(0.0, LENGTH, 15)
 whole = {}
 for stretch in muscle_stretches:
     directory = OUT / f"fusiform_{stretch}"
-    summary = run(parse(with_stretch(fusiform_raw, stretch, "insertion", LENGTH), ROOT / "examples"), directory)
+    config = model.load_config(with_stretch(fusiform_raw, stretch, "insertion", LENGTH), base=EXAMPLES)
+    summary = model.run(config, out=directory).summary
     steps = [s for s in summary["steps"] if s["converged"]]
     passive, total, active = forces(summary, "insertion")
     row = {"passive": passive, "active": active, "normalised": active / (fusiform_raw["material"][0]["sigma_max"]

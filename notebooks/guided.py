@@ -34,7 +34,6 @@
 # `WRITE_DOCS=1` also writes `docs/guided.png`.
 
 # %%
-import dataclasses
 import os
 import sys
 from pathlib import Path
@@ -55,17 +54,16 @@ try:
 except ImportError:  # plots are optional
     plt = None
 
-from model.config import load  # noqa: E402
+import model  # noqa: E402
 from model.experiments.guided import bounding_box_pins, error_table, run_stage1, run_stage2  # noqa: E402
 
 # %% [markdown]
 # ## Stage 1: attachments drive the bar, targets are recorded
 
 # %%
-config = load(ROOT / "examples" / "guided_stage1.toml")
 frames = 6 if CI else 10
-config = dataclasses.replace(config, loading=dataclasses.replace(config.loading, steps=frames),
-                             output=dataclasses.replace(config.output, png=False))
+config = model.load_config(ROOT / "examples" / "guided_stage1.toml",
+                           overrides={"loading.steps": frames, "output.png": False})
 stage1 = run_stage1(config, OUT / "stage1")
 stage1.save(OUT / "stage1" / "targets.npz")
 U = stage1.targets

@@ -54,7 +54,6 @@
 # %%
 import os
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -76,9 +75,8 @@ except ImportError:  # plots are optional
 import meshio  # noqa: E402
 from _pictures import cell_fibre_state, render, small_png, surface_cut  # noqa: E402
 
-from model.config import parse  # noqa: E402
+import model  # noqa: E402
 from model.experiments.muscle import active_stress, isometric_curves  # noqa: E402
-from model.pipeline import run  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 MAGNIFY = 20.0  # displacements in the outline plot and the picture
@@ -91,13 +89,11 @@ MAGNIFY = 20.0  # displacements in the outline plot and the picture
 # picture).
 
 # %%
-raw = tomllib.loads((ROOT / "examples" / "isometric.toml").read_text())
-raw["loading"]["steps"] = 5 if CI else 10
-raw["output"].update(png=False, xdmf=False, vtu=True)
-config = parse(raw, ROOT / "examples")
+config = model.load_config(ROOT / "examples" / "isometric.toml",
+                           overrides={"loading.steps": 5 if CI else 10, "output.png": False, "output.xdmf": False})
 law = next(m.law for m in config.materials if m.region == "belly")
-summary = run(config, OUT)
-steps = [s for s in summary["steps"] if s["converged"]]
+result = model.run(config, out=OUT)
+summary, steps = result.summary, result.converged_steps
 print(f"{summary['cells']} cells, {summary['dofs']} dofs, {len(steps)} steps, {summary['wall_time_s']:.1f} s, "
       f"Newton iterations per step: {[s['newton_iterations'] for s in steps]}")
 

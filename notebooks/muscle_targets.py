@@ -43,7 +43,6 @@
 # `WRITE_DOCS=1` also writes `docs/muscle_targets.png`.
 
 # %%
-import dataclasses
 import importlib.util
 import os
 import sys
@@ -68,8 +67,7 @@ except ImportError:  # plots are optional
 import meshio  # noqa: E402
 from _pictures import deformation_gradients, render, small_png  # noqa: E402
 
-from model.config import load  # noqa: E402
-from model.pipeline import run  # noqa: E402
+import model  # noqa: E402
 
 spec = importlib.util.spec_from_file_location("muscle_targets", ROOT / "examples" / "muscle_targets.py")
 muscles = importlib.util.module_from_spec(spec)
@@ -97,16 +95,11 @@ if plt is not None:
 # ## The run
 
 # %%
-config = load(ROOT / "examples" / "muscle_targets.toml")
 cells = (5, 5, 16) if CI else (8, 8, 24)
 frames = 10 if CI else 20
-config = dataclasses.replace(
-    config,
-    mesh=dataclasses.replace(config.mesh, params={**config.mesh.params, "cells": list(cells)}),
-    loading=dataclasses.replace(config.loading, steps=frames),
-    output=dataclasses.replace(config.output, png=False),
-)
-summary = run(config, OUT)
+config = model.load_config(ROOT / "examples" / "muscle_targets.toml",
+                           overrides={"mesh.cells": list(cells), "loading.steps": frames, "output.png": False})
+summary = model.run(config, out=OUT).summary
 steps = [s for s in summary["steps"] if s["converged"]]
 print(f"{summary['cells']} cells, {summary['dofs']} dofs, {len(steps)} frames, {summary['wall_time_s']:.1f} s, "
       f"Newton iterations per frame: {[s['newton_iterations'] for s in steps]}")

@@ -35,7 +35,6 @@
 # shorter animation on the coarse mesh. `WRITE_DOCS=1` also writes `docs/trunk.png`.
 
 # %%
-import dataclasses
 import importlib.util
 import os
 import sys
@@ -58,9 +57,8 @@ except ImportError:  # plots are optional
     plt = None
 
 import meshes  # noqa: E402
+import model  # noqa: E402
 from meshes.topology import signed_volumes  # noqa: E402
-from model.config import load  # noqa: E402
-from model.pipeline import run  # noqa: E402
 
 spec = importlib.util.spec_from_file_location("trunk_targets", ROOT / "examples" / "trunk_targets.py")
 targets = importlib.util.module_from_spec(spec)
@@ -73,16 +71,11 @@ spec.loader.exec_module(targets)
 # full notebook uses twice as many frames on a finer mesh.
 
 # %%
-config = load(ROOT / "examples" / "trunk.toml")
 frames = 24 if CI else 48
 size = 0.3 if CI else 0.2
-config = dataclasses.replace(
-    config,
-    mesh=dataclasses.replace(config.mesh, params={**config.mesh.params, "size": size}),
-    loading=dataclasses.replace(config.loading, steps=frames),
-    output=dataclasses.replace(config.output, png=False),
-)
-summary = run(config, OUT)
+config = model.load_config(ROOT / "examples" / "trunk.toml",
+                           overrides={"mesh.size": size, "loading.steps": frames, "output.png": False})
+summary = model.run(config, out=OUT).summary
 steps = [s for s in summary["steps"] if s["converged"]]
 print(f"{summary['cells']} cells, {summary['dofs']} dofs, {len(steps)} frames, {summary['wall_time_s']:.1f} s")
 

@@ -152,6 +152,9 @@ def test_failing_solve_exits_1_and_keeps_the_summary(tmp_path: Path) -> None:
     assert "SNES" in error and "reason" in error
     assert f"reason {last['snes_reason']}" in error and last["snes_reason_name"] in error
     assert f"{last['load_factor']:.6g}" in error
+    # the real reason and the keys that change it
+    assert "loading.max_cutbacks" in error and "loading.steps" in error and "stopped at 0.125" in error
+    assert summary["failure"] in error
     # progress lines report the failed attempts too; the converged states were written
     assert sum("FAILED" in line for line in result.stdout.splitlines()) == len(failed)
     assert (out / f"step_{len(done):04d}.vtu").is_file()

@@ -17,8 +17,7 @@ import pytest
 from conftest import ROOT, environment, serial_only
 from mpi4py import MPI
 
-from model.verify import seeds
-from model.verify import deformation_samples, field_samples
+from model.verify import deformation_samples, field_samples, seeds
 
 AGREE = {
     "klar-eq1", "klar-eq3", "klar-eq4-6", "klar-psd", "klar-eq1-inverted",

@@ -2,37 +2,78 @@
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any, Literal
 
-from model.errors import ConfigError
+from pydantic import model_validator
+
+from model.config.base import NonNegative, Number, Positive, Section, entries, fail, interval, key, validate
 
 #: time-integration schemes of model.solvers.dynamics.Dynamics
 SCHEMES = ("backward_euler", "newmark", "generalized_alpha")
 #: values of [dynamics].scheme: "quasi_static" means the load stepping of model.solvers.loadstepping
 CONFIG_SCHEMES = ("quasi_static", *SCHEMES)
+_TIME_KEYS = ("dt", "end_time", "rayleigh", "rho_infinity", "load_ramp", "initial")
 
 
-@dataclass(frozen=True)
-class DynamicsSpec:
-    """The [dynamics] section: scheme, time step, end time, Rayleigh coefficients (a_M, b_K).
+def _schema(schema: dict[str, Any]) -> None:
+    """JSON schema: the time-integration keys need a time-integration scheme; rho_infinity generalized_alpha."""
+    dynamic = {"required": ["scheme"], "properties": {"scheme": {"enum": list(SCHEMES)}}}
+    schema["allOf"] = [
+        {"if": dynamic, "then": {"required": ["dt"]}, "else": {"properties": {k: False for k in _TIME_KEYS}}},
+        {"if": {"required": ["scheme"], "properties": {"scheme": {"const": "generalized_alpha"}}},
+         "else": {"properties": {"rho_infinity": False}}},
+    ]
 
-    ``dt`` is None for the quasi-static scheme; ``end_time`` defaults to 1 (with the default
-    time_to_load(t) = t, the loads reach their full value at the end).
+
+class DynamicsSpec(Section):
+    """[dynamics]: ``scheme`` "quasi_static" (the default: load stepping, [loading]; no other key) or a time
+    integration of M a + C v + f_int(u) = f_ext(t) from t = 0 to ``end_time`` with step ``dt`` (each material
+    needs a density). With the default load_ramp the loads reach their full value at end_time.
+
+    In Python, ``dt`` is None for the quasi-static scheme.
     """
 
-    scheme: str = "quasi_static"
-    dt: float | None = None
-    end_time: float = 1.0
-    rayleigh: tuple[float, float] = (0.0, 0.0)
+    model_config = {"json_schema_extra": _schema}
+
+    scheme: Literal[CONFIG_SCHEMES] = key(
+        "quasi_static (load stepping) or a time-integration scheme: backward_euler (first order, dissipative), "
+        "newmark (average acceleration, energy conserving), generalized_alpha (second order, damping set by "
+        "rho_infinity)", default="quasi_static")
+    dt: Positive | None = key("the time step (required by a time-integration scheme)", "s (time)", default=None)
+    end_time: Positive = key("the end of the time interval", "s (time)", default=1.0)
+    rayleigh: Annotated[tuple[NonNegative, NonNegative], entries(2, " [a_M, b_K]")] = key(
+        "Rayleigh damping C = a_M M + b_K K: [a_M (1/s), b_K (s)], each >= 0", "1/s, s (a_M, b_K)", default=(0.0, 0.0))
     #: generalized_alpha only: spectral radius at infinite frequency
-    rho_infinity: float = 0.8
+    rho_infinity: Annotated[Number, *interval(0, 1)] = key(
+        "generalized_alpha: spectral radius at infinite frequency (1: no numerical damping)", "dimensionless",
+        default=0.8)
     #: constant loads and Dirichlet values grow linearly to their full value at this time (None: end_time);
     #: expressions, tables (activation, bones) and S_function see the time itself
-    load_ramp: float | None = None
+    load_ramp: Positive | None = key(
+        "constant loads and prescribed values grow linearly to their full value at this time (default: end_time); "
+        "expressions and tables see the time itself", "s (time)", default=None)
     #: u_0: "rest" (u = 0) or "equilibrium" (the quasi-static solution at t = 0, e.g. an activated muscle)
-    initial: str = "rest"
+    initial: Literal["rest", "equilibrium"] = key(
+        "the initial state: rest (u = 0, v = 0) or equilibrium (the quasi-static solution at t = 0, v = 0)",
+        default="rest")
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        """Also positionally, in field order: DynamicsSpec("newmark", 0.01, 2.0, (0.5, 1e-3))."""
+        super().__init__(**dict(zip(type(self).model_fields, args, strict=False)), **kwargs)
+
+    @model_validator(mode="after")
+    def _scheme_keys(self) -> DynamicsSpec:
+        given = self.model_fields_set
+        if self.scheme == "quasi_static":
+            for k in _TIME_KEYS:
+                if k in given:
+                    fail(f"only applies to a time-integration scheme ({', '.join(SCHEMES)}), not \"quasi_static\"", k)
+            return self
+        if self.dt is None:
+            fail(f"missing: scheme = \"{self.scheme}\" needs a time step", "dt")
+        if "rho_infinity" in given and self.scheme != "generalized_alpha":
+            fail(f"only applies to scheme = \"generalized_alpha\", not \"{self.scheme}\"", "rho_infinity")
+        return self
 
     def load_scale(self, t: float) -> float:
         """s(t) = min(t / load_ramp, 1): the factor of the scaled loads at time t."""
@@ -44,78 +85,9 @@ class DynamicsSpec:
         return self.scheme != "quasi_static"
 
 
-_DYNAMICS_KEYS = ("scheme", "dt", "end_time", "rayleigh", "rho_infinity", "load_ramp", "initial")
-
-
-def _config_error(key: str, message: str) -> None:
-    raise ConfigError(f"dynamics.{key}: {message}")
-
-
-def _config_number(value: Any, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        _config_error(key, f"must be a number, got {value!r}")
-    if not math.isfinite(value):
-        _config_error(key, f"must be finite, got {value!r}")
-    return float(value)
-
-
 def parse_dynamics(raw: Any) -> DynamicsSpec:
-    """Check a [dynamics] table; errors are ConfigError("dynamics.KEY: message").
+    """Check a [dynamics] table; errors are ConfigError("dynamics.KEY: message")."""
+    return validate(DynamicsSpec, raw, "dynamics")
 
-    Keys: ``scheme`` ("quasi_static" (default), "backward_euler", "newmark", "generalized_alpha"),
-    ``dt`` (> 0, required by a time-integration scheme), ``end_time`` (> 0, default 1),
-    ``rayleigh = [a_M, b_K]`` (each >= 0, default [0, 0]), ``rho_infinity`` (generalized_alpha only,
-    in [0, 1], default 0.8), ``load_ramp`` (> 0, default end_time: constant loads reach their full
-    value then), ``initial`` ("rest" (default): u_0 = 0; "equilibrium": u_0 is the quasi-static
-    solution at t = 0). These are refused with "quasi_static".
-    Densities are per material (``density`` in [[material]]), not here.
-    """
-    if not isinstance(raw, dict):
-        raise ConfigError(f"dynamics: must be a table, got {type(raw).__name__}")
-    for key in raw:
-        if key not in _DYNAMICS_KEYS:
-            _config_error(key, f"unknown key (allowed: {', '.join(sorted(_DYNAMICS_KEYS))})")
-    scheme = raw.get("scheme", "quasi_static")
-    if not isinstance(scheme, str):
-        _config_error("scheme", f"must be a string, got {scheme!r}")
-    if scheme not in CONFIG_SCHEMES:
-        _config_error("scheme", f"{scheme!r} is not one of {', '.join(CONFIG_SCHEMES)}")
-    if scheme == "quasi_static":
-        for key in ("dt", "end_time", "rayleigh", "rho_infinity", "load_ramp", "initial"):
-            if key in raw:
-                _config_error(key, f"only applies to a time-integration scheme ({', '.join(SCHEMES)}), "
-                              "not \"quasi_static\"")
-        return DynamicsSpec()
-    if "dt" not in raw:
-        _config_error("dt", f"missing: scheme = \"{scheme}\" needs a time step")
-    dt = _config_number(raw["dt"], "dt")
-    if dt <= 0.0:
-        _config_error("dt", f"{dt} is out of range, must be > 0")
-    end_time = _config_number(raw.get("end_time", 1.0), "end_time")
-    if end_time <= 0.0:
-        _config_error("end_time", f"{end_time} is out of range, must be > 0")
-    rayleigh = raw.get("rayleigh", [0.0, 0.0])
-    if not isinstance(rayleigh, list) or len(rayleigh) != 2:
-        _config_error("rayleigh", f"must be an array of 2 numbers [a_M, b_K], got {rayleigh!r}")
-    coefficients = tuple(_config_number(c, f"rayleigh[{i}]") for i, c in enumerate(rayleigh))
-    for i, c in enumerate(coefficients):
-        if c < 0.0:
-            _config_error(f"rayleigh[{i}]", f"{c} is out of range, damping coefficients must be >= 0")
-    rho_infinity = DynamicsSpec.rho_infinity
-    if "rho_infinity" in raw:
-        if scheme != "generalized_alpha":
-            _config_error("rho_infinity", f"only applies to scheme = \"generalized_alpha\", not \"{scheme}\"")
-        rho_infinity = _config_number(raw["rho_infinity"], "rho_infinity")
-        if not 0.0 <= rho_infinity <= 1.0:
-            _config_error("rho_infinity", f"{rho_infinity} is out of range, must be in [0, 1]")
-    load_ramp = None
-    if "load_ramp" in raw:
-        load_ramp = _config_number(raw["load_ramp"], "load_ramp")
-        if load_ramp <= 0.0:
-            _config_error("load_ramp", f"{load_ramp} is out of range, must be > 0")
-    initial = raw.get("initial", "rest")
-    if initial not in ("rest", "equilibrium"):
-        _config_error("initial", f"{initial!r} is not one of rest, equilibrium")
-    return DynamicsSpec(scheme, dt, end_time, (coefficients[0], coefficients[1]), rho_infinity, load_ramp,
-                        initial)
 
+__all__ = ["CONFIG_SCHEMES", "SCHEMES", "DynamicsSpec", "parse_dynamics"]

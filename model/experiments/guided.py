@@ -336,7 +336,7 @@ def stage2_problem(config: RunConfig, domain: Domain) -> tuple[ElasticityProblem
     """The configuration's materials on ``domain`` with per-cell target fields (identity) and no boundary data."""
     materials, fields = [], []
     for i, m in enumerate(config.materials):
-        if "S" not in forms.FIELDS.get(m.law.name, ()):
+        if "S" not in forms.law_fields(m.law):
             raise ConfigError(f"material[{i}].law: guided simulation needs shape_target (or volume) laws, "
                               f"got {m.law.name!r}")
         target = TargetField(domain.mesh, domain.region_cells(m.region))

@@ -4,7 +4,10 @@ Fields written each converged step:
 - ``u``: displacement, interpolated into P1 (the mesh's vertices) for output;
 - ``J``, ``cauchy_stress`` (sigma = J^-1 P F^T), ``von_mises`` (sqrt(3/2 s:s)): cell
   averages (integrals over each cell with the run's quadrature rule divided by its
-  volume, which works for quadrature-point state such as polar rotations too);
+  volume, which works for quadrature-point state such as polar rotations too). J is
+  kinematic, over every cell; the stresses are those of the problem's stress terms (its
+  laws and the cell integrals of energies added with add_energy), zero on cells that
+  have none (a body with no energy density there carries no stress);
 - the problem's per-cell input fields (``fibre_direction`` a0, ``activation`` alpha) when present.
 The VTU files (meshio) are written on rank 0 from the whole mesh gathered there;
 the PNG is rendered from the last VTU (model.output.render, in a subprocess).
@@ -55,27 +58,35 @@ class CellAverages:
         self.volume = volume.array.copy()
         volume.destroy()
         F = problem.F
-        J_form = sum((ufl.det(F) * s * dx for _, dx in problem.stress_terms), start=0)
+        J_form = ufl.det(F) * s * dx_all
         sigma_form = sum((ufl.inner(sig, t) * dx for sig, dx in problem.cauchy_stress_terms()), start=0)
         vm_form = sum((vm * s * dx for vm, dx in problem.von_mises_terms()), start=0)
-        self.fields = {
+        #: name: (compiled form, or None when there is no stress term: the field stays zero; Function; block size)
+        self.fields: dict[str, tuple[compat.Form | None, fem.Function, int]] = {
             "J": (fem.form(J_form), fem.Function(self.scalar_space, name="J"), 1),
-            "cauchy_stress": (fem.form(sigma_form), fem.Function(self.tensor_space, name="cauchy_stress"), 9),
-            "von_mises": (fem.form(vm_form), fem.Function(self.scalar_space, name="von_mises"), 1),
+            "cauchy_stress": (_form_or_none(sigma_form), fem.Function(self.tensor_space, name="cauchy_stress"), 9),
+            "von_mises": (_form_or_none(vm_form), fem.Function(self.scalar_space, name="von_mises"), 1),
         }
 
     def update(self) -> dict[str, fem.Function]:
         self.problem.update_state()
         out = {}
         for name, (form, function, bs) in self.fields.items():
+            out[name] = function
+            if form is None:
+                continue
             b = fem_petsc.assemble_vector(form)
             b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             n = self.volume.size
             function.x.array[: n * bs] = (b.array.reshape(n, bs) / self.volume[:, None]).reshape(-1)
             function.x.scatter_forward()
             b.destroy()
-            out[name] = function
         return out
+
+
+def _form_or_none(form: ufl.Form | int) -> compat.Form | None:
+    """The compiled form, or None for the integer 0 (a sum with no terms)."""
+    return None if isinstance(form, int) else fem.form(form)
 
 
 class ResultWriter:

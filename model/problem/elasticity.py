@@ -9,8 +9,17 @@ Residual (pure displacement), with lambda the load factor:
 
 Mixed displacement-pressure (Taylor-Hood, P_k / P_(k-1)): with psi = W + (kappa/2) g^2
 (forms.law), the internal term uses P = dW/dF + p dg/dF and the pressure equation
-(g(F) - p / kappa) q dx is added. The Jacobian is always ufl.derivative of the residual.
-Dirichlet values are lambda times their reference value.
+(g(F) - p / kappa) q dx is added. An incompressible law (its bulk parameter lmbda, K or kappa = inf)
+gets the pressure equation g(F) q dx instead: p is the Lagrange multiplier of g(F) = 0, there is no
+-p^2 / (2 kappa) term, and inf never enters a form. The displacement formulation refuses such a law
+(ValueError naming the parameter), and the mixed one a law with kappa = 0 (no pressure to solve for).
+The Jacobian is always ufl.derivative of the residual. Dirichlet values are lambda times their
+reference value.
+
+Energies added with add_energy (contact and sliding penalties, a user's own terms) enter the residual
+as dPi/du [v], the reported energy (total_energy) and, for their cell integrals psi dx, the stress
+outputs as P = dpsi/dF (stress_terms), so that a problem built from add_energy alone reports the same
+quantities as one built from laws.
 """
 
 from __future__ import annotations
@@ -95,12 +104,20 @@ class ElasticityProblem:
         self._state_stamp: np.ndarray | None = None
         self.internal = 0
         self.external = 0
-        self.strain_energy = 0
+        #: the materials' energy, int psi dx (a zero form when there is no material: always a ufl.Form)
+        self.strain_energy: ufl.Form = fem.Constant(msh, PETSc.ScalarType(0.0)) * self.dx
+        #: (P, dx): first Piola-Kirchhoff stress of each material and of each cell integral of an added energy
         self.stress_terms: list[tuple[ufl.core.expr.Expr, ufl.Measure]] = []
         self.extra_energies: list[ufl.Form] = []
+        self._energy_form: compat.Form | None = None
         #: per-cell input fields written with the results (fibre directions, activation), by name
         self.cell_fields: dict[str, fem.Function] = {}
-        for region, law in self.materials:
+        for i, (region, law) in enumerate(self.materials):
+            if formulation == "displacement" and law.incompressible:
+                value = getattr(law, law.bulk_parameter, law.bulk_penalty)
+                raise ValueError(f"{law.name}: {law.bulk_parameter} = {value!r} (incompressible, materials[{i}] on "
+                                 f"region {region!r}) needs formulation = 'mixed' (Taylor-Hood): the displacement "
+                                 "formulation has no pressure to enforce the constraint")
             self._add_material(region, law)
         self.dirichlet: list[DirichletBoundary] = []
         self.load_hooks: list[Callable[[float], None]] = []
@@ -126,11 +143,12 @@ class ElasticityProblem:
             R = polar.rotation
         P = law.stress(self.F, R, self.p)
         self.internal += ufl.inner(P, ufl.grad(self.v)) * dx
+        energy = law.energy(self.F, R) if not law.incompressible else law.mixed_energy(self.F, self.p, R)
         if self.p is not None:
-            g = law.volume_constraint(self.F)
-            self.internal += (g - self.p / law.bulk_penalty) * self.q * dx
-        self.strain_energy += law.energy(self.F, R) * dx
+            self.internal += law.pressure_residual(self.F, self.p) * self.q * dx
+        self.strain_energy += energy * dx
         self.stress_terms.append((P, dx))
+        self._energy_form = None
 
     def add_dirichlet(self, name: str, components: Sequence[int], values: Sequence[ValueSource],
                       load_dependent: Sequence[bool] | None = None,
@@ -204,11 +222,39 @@ class ElasticityProblem:
     def add_energy(self, energy: ufl.Form) -> None:
         """Add a potential Pi (a UFL form in the solution, e.g. a contact penalty): R += dPi/du [v].
 
-        Call before a solver is created (the forms are compiled then).
+        Pi counts in total_energy(); each of its cell integrals psi dx whose psi depends on grad u
+        adds P = dpsi/dF to the stress outputs (stress_terms). Call before a solver is created (the
+        forms are compiled then).
         """
         self.internal += ufl.derivative(energy, self.solution, ufl.TestFunction(self.space))
         self.extra_energies.append(energy)
+        self.stress_terms += self._stress_terms_of(energy)
+        self._energy_form = None
         self._forms = None
+
+    def _stress_terms_of(self, energy: ufl.Form) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
+        """(P = dpsi/dF, dx) of each cell integral psi dx of ``energy`` that depends on F = I + grad u.
+
+        grad u is replaced by a variable F - I, so P holds u and p fixed: the first Piola-Kirchhoff
+        stress of psi (its dependence on u itself, e.g. a body-force potential, is no stress).
+        """
+        from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
+        from ufl.algorithms.apply_derivatives import apply_derivatives
+
+        Fv = ufl.variable(self.F)
+        grad_u = ufl.grad(self.u)
+        out = []
+        for integral in energy.integrals():
+            if integral.integral_type() != "cell":
+                continue
+            density = ufl.replace(integral.integrand(), {grad_u: Fv - ufl.Identity(3)})
+            P = apply_derivatives(ufl.diff(apply_algebra_lowering(density), Fv))
+            if isinstance(P, ufl.constantvalue.Zero):
+                continue
+            dx = ufl.Measure("dx", domain=integral.ufl_domain(), subdomain_id=integral.subdomain_id(),
+                             metadata=integral.metadata(), subdomain_data=integral.subdomain_data())
+            out.append((P, dx))
+        return out
 
     def add_residual(self, form: ufl.Form) -> None:
         """Add a residual term linear in the test functions (self.v, self.q), e.g. inertia or damping.
@@ -287,18 +333,38 @@ class ElasticityProblem:
     # --- derived quantities ---------------------------------------------------------------------
 
     def total_energy(self) -> float:
-        """Total strain energy integral of psi over the body (all ranks)."""
-        if not hasattr(self, "_energy_form"):
-            self._energy_form = fem.form(self.strain_energy)
+        """The stored energy at the current solution (all ranks): the materials' int psi dx plus every
+        energy added with add_energy (contact, sliding, a user's terms); external loads are not included.
+
+        For an incompressible law (kappa = inf, mixed formulation) the material's term is the Lagrangian
+        int (W + p g(F)) dx, whose p g part vanishes at convergence (the pressure equation makes
+        int g q dx = 0 for every q of the pressure space, p among them): it is int W dx to solver
+        tolerance. A law with finite kappa contributes int psi dx = int W + (kappa/2) g^2 dx in both
+        formulations.
+        """
+        if self._energy_form is None:
+            energy = self.strain_energy
+            for extra in self.extra_energies:
+                energy = energy + extra
+            self._energy_form = fem.form(energy)
         self.update_state()
         comm = self.domain.mesh.comm
         return comm.allreduce(fem.assemble_scalar(self._energy_form), op=MPI.SUM)
 
+    def stress_groups(self) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
+        """(P, dx): the stress terms summed per measure (a material and an added energy on the same cells
+        make one stress), in the order of their first term."""
+        groups: dict[ufl.Measure, ufl.core.expr.Expr] = {}
+        for P, dx in self.stress_terms:
+            groups[dx] = groups[dx] + P if dx in groups else P
+        return list((P, dx) for dx, P in groups.items())
+
     def cauchy_stress_terms(self) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
-        """(sigma = J^-1 P F^T, dx_r) per material region."""
-        return [(cauchy_stress(P, self.F), dx) for P, dx in self.stress_terms]
+        """(sigma = J^-1 P F^T, dx) per material region and added energy (stress_groups)."""
+        return [(cauchy_stress(P, self.F), dx) for P, dx in self.stress_groups()]
 
     def von_mises_terms(self) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
+        """(von Mises stress of sigma, dx) per stress group: the stresses of one measure summed first."""
         return [(von_mises(sigma), dx) for sigma, dx in self.cauchy_stress_terms()]
 
     def displacement(self) -> fem.Function:

@@ -1,7 +1,7 @@
 """How it is solved: our SNES driver (newton), load stepping, the projected tangent, Projective
 Dynamics, the contact loops (VI bounds, Uzawa) and the time integrators (dynamics)."""
 
-from model.solvers.loadstepping import StepRecord, step_loads
+from model.solvers.loadstepping import Outcome, StepRecord, step_loads
 from model.solvers.newton import DEFAULT_OPTIONS, NewtonSolver, SolveResult
 
-__all__ = ["DEFAULT_OPTIONS", "NewtonSolver", "SolveResult", "StepRecord", "step_loads"]
+__all__ = ["DEFAULT_OPTIONS", "NewtonSolver", "Outcome", "SolveResult", "StepRecord", "step_loads"]

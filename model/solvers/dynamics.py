@@ -85,6 +85,7 @@ from ufl.algorithms import expand_derivatives
 from model import compat
 from model.config.dynamics import SCHEMES
 from model.problem import ElasticityProblem
+from model.solvers.loadstepping import Outcome, give_up_reason
 from model.solvers.newton import SolveResult
 
 log = logging.getLogger(__name__)
@@ -386,7 +387,8 @@ class Dynamics:
 
         Displacement formulation: problem.total_energy() (int psi dx) plus energies added with
         add_energy. Mixed: the potential whose stationarity the mixed equations express,
-        int W(F) + p g(F) - p^2 / (2 kappa) dx (equal to int psi dx when p = kappa g), plus the added
+        int W(F) + p g(F) - p^2 / (2 kappa) dx (forms.Law.mixed_energy; equal to int psi dx when p = kappa g;
+        no p^2 term when kappa = inf), plus the added
         energies. External loads are not included (follower pressure has no potential).
         """
         problem = self.problem
@@ -396,9 +398,7 @@ class Dynamics:
                 polar = iter(problem.polar_fields)
                 for region, law in problem.materials:
                     R = next(polar).rotation if law.needs_rotation else None
-                    g = law.volume_constraint(problem.F)
-                    density = law.reduced_energy(problem.F, R) + problem.p * g - problem.p**2 / (2 * law.bulk_penalty)
-                    energy += density * problem.region_measure(region)
+                    energy += law.mixed_energy(problem.F, problem.p, R) * problem.region_measure(region)
             else:
                 energy = problem.strain_energy
             for extra in problem.extra_energies:
@@ -438,7 +438,7 @@ class TimeStepRecord:
 def step_time(solver: _Solver, dynamics: Dynamics, end_time: float, dt: float,
               on_step: Callable[[TimeStepRecord], None] | None = None,
               time_to_load: Callable[[float], float] = lambda t: t,
-              max_cutbacks: int = 8, growth: float = 1.5) -> bool:
+              max_cutbacks: int = 8, growth: float = 1.5) -> Outcome:
     """Integrate from dynamics.time to ``end_time`` in steps of ``dt``; True when it got there.
 
     Each step: dt_k = min(h, end_time - t), problem.set_load_factor(time_to_load(t + dt_k))
@@ -488,13 +488,14 @@ def step_time(solver: _Solver, dynamics: Dynamics, end_time: float, dt: float,
         dynamics.restore()
         problem.set_load_factor(float(time_to_load(current)))
         cutbacks += 1
-        increment *= 0.5
-        if cutbacks > max_cutbacks or increment < nominal * 0.5**max_cutbacks * (1 - 1e-12):
+        increment = 0.5 * step  # half the step that failed (which end_time may have shortened)
+        reason = give_up_reason("time step", target, current, f"{result.reason}, {result.reason_name}", cutbacks,
+                                increment, nominal,                                 max_cutbacks, "dynamics.dt")
+        if reason is not None:
             if rank0:
-                log.error("time step to t = %.6g failed (%d times in a row, dt %.3g; last SNES reason %s); "
-                          "giving up at t = %.6g", target, cutbacks, step, result.reason_name, current)
-            return False
+                log.error("giving up: %s", reason)
+            return Outcome(False, reason)
         if rank0:
             log.warning("SNES failed at t = %.6g (%s); cutting the time step back to %.4g", target,
                         result.reason_name, increment)
-    return True
+    return Outcome(True)

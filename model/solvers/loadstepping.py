@@ -1,10 +1,12 @@
 """Load stepping with automatic cut-back and re-growth.
 
-The load factor goes from 0 to 1 in ``steps`` equal increments d = 1/steps. When
-SNES fails, the solution is restored to the last converged state and the
-increment is halved; after a converged step it grows by ``growth`` again, never beyond d.
+The load factor goes from 0 to 1 in ``steps`` equal increments d = 1/steps. When SNES fails,
+the solution is restored to the last converged state and the step that failed is halved (so the
+next attempt always aims lower, also when the end of the range had shortened that step); after a
+converged step the increment grows by ``growth`` again, never beyond d.
 The run gives up after ``max_cutbacks`` failures in a row, or when the increment falls below
-d / 2^max_cutbacks (so that alternating failures and successes cannot crawl on forever).
+d / 2^max_cutbacks (so that alternating failures and successes cannot crawl on forever); the
+returned Outcome is false then and says which of the two happened and which keys change it.
 """
 
 from __future__ import annotations
@@ -20,29 +22,66 @@ log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
+class Outcome:
+    """The end of a load (or time) stepping: true when it reached its end; else ``reason`` says why it gave
+    up, naming the configuration keys that change it."""
+
+    completed: bool
+    reason: str = ""
+
+    def __bool__(self) -> bool:
+        return self.completed
+
+
+def give_up_reason(what: str, target: float, current: float, reason_name: str, failures: int, increment: float,
+                   nominal: float, max_cutbacks: int, step_key: str) -> str | None:
+    """Why cut-back stops, or None while it may go on.
+
+    Two rules: more than ``max_cutbacks`` failures in a row, or an increment below nominal / 2^max_cutbacks
+    (failures and successes alternating would otherwise crawl on for ever). ``step_key`` names the key of
+    the nominal increment (loading.steps or dynamics.dt).
+    """
+    smallest = nominal * 0.5**max_cutbacks
+    if failures > max_cutbacks:
+        return (f"{what} to {target:.6g} failed {failures} times in a row, more than loading.max_cutbacks = "
+                f"{max_cutbacks} (last SNES reason {reason_name}); stopped at {current:.6g}: raise "
+                f"loading.max_cutbacks, or {step_key} for smaller increments from the start")
+    if increment < smallest * (1 - 1e-12):
+        return (f"{what} to {target:.6g} failed (SNES reason {reason_name}) and the next increment {increment:.3g} "
+                f"would fall below the smallest allowed, {nominal:.3g} / 2^{max_cutbacks} = {smallest:.3g} "
+                f"({step_key}, loading.max_cutbacks); stopped at {current:.6g}: raise loading.max_cutbacks or "
+                f"{step_key}")
+    return None
+
+
+@dataclass(frozen=True)
 class StepRecord:
     load_factor: float
     result: SolveResult
     seconds: float = 0.0  # wall time of the solve
 
 
-def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: float = 1.5,
-               on_step: Callable[[StepRecord], None] | None = None) -> bool:
-    """Drive the load factor of solver.problem from its current value to 1; True when it got there."""
+def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: int, max_cutbacks: int = 8,
+                 growth: float = 1.5, on_step: Callable[[StepRecord], None] | None = None, start: float = 0.0,
+                 what: str = "load step", step_key: str = "loading.steps") -> Outcome:
+    """Drive a parameter s from ``start`` to 1 in increments of 1/steps, ``apply(s)`` setting it on the problem
+    before each solve; a failed solve restores the last converged state and halves the increment that failed,
+    a converged one grows the increment by ``growth`` (up to 1/steps). A true Outcome when s got to 1, else
+    one whose ``reason`` says why it gave up (give_up_reason)."""
     problem = solver.problem
     nominal = 1.0 / steps
     increment = nominal
-    current = float(problem.time)
+    current = start
     cutbacks = 0
     while current < 1.0 - 1e-12:
         target = min(current + increment, 1.0)
         if 1.0 - target < 1e-9:
             target = 1.0
         saved = problem.solution.x.array.copy()
-        problem.set_load_factor(target)
-        start = time.perf_counter()
+        apply(target)
+        began = time.perf_counter()
         result = solver.solve()
-        record = StepRecord(target, result, time.perf_counter() - start)
+        record = StepRecord(target, result, time.perf_counter() - began)
         if on_step is not None:
             on_step(record)
         if result.converged:
@@ -51,13 +90,24 @@ def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: 
             increment = min(increment * growth, nominal)
             continue
         problem.solution.x.array[:] = saved
-        problem.set_load_factor(current)
+        apply(current)
         cutbacks += 1
-        increment *= 0.5
-        if cutbacks > max_cutbacks or increment < nominal * 0.5**max_cutbacks * (1 - 1e-12):
-            log.error("load step to %.6g failed (%d times in a row, increment %.3g; last SNES reason %s); "
-                      "giving up at %.6g", target, cutbacks, 2 * increment, result.reason_name, current)
-            return False
-        log.warning("SNES failed at load factor %.6g (%s); cutting the increment back to %.4g",
-                    target, result.reason_name, increment)
-    return True
+        increment = 0.5 * (target - current)  # half the step that failed (which the end may have shortened)
+        reason = give_up_reason(what, target, current, f"{result.reason}, {result.reason_name}", cutbacks,
+                                increment, nominal,                                 max_cutbacks, step_key)
+        if reason is not None:
+            log.error("giving up: %s", reason)
+            return Outcome(False, reason)
+        log.warning("SNES failed at %s %.6g (%s); cutting the increment back to %.4g",
+                    what.removesuffix(" step"), target, result.reason_name, increment)
+    return Outcome(True)
+
+
+def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: float = 1.5,
+               on_step: Callable[[StepRecord], None] | None = None) -> Outcome:
+    """Drive the load factor of solver.problem from its current value to 1 (continuation with
+    apply = problem.set_load_factor); a true Outcome when it got there, else one whose ``reason`` says why
+    it gave up."""
+    problem = solver.problem
+    return continuation(solver, problem.set_load_factor, steps, max_cutbacks, growth, on_step,
+                        start=float(problem.time))

@@ -1,0 +1,121 @@
+"""[mesh]: the body's tetrahedral mesh, from a generator of the ``meshes`` package or from a file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationInfo, field_validator, model_validator
+
+from model.config.base import ByPresence, ExistingFile, Integer, Name, Text, Variant, fail, key, kinds
+
+_FILE_KEYS = ("regions", "boundaries", "cell_data", "facet_data")
+
+
+def _generator_schema(schema: dict[str, Any]) -> None:
+    """The generator names, and per generator its parameters with their defaults (meshes' signatures)."""
+    from meshes import GENERATORS, generator_parameters
+
+    schema["properties"]["generator"]["enum"] = sorted(GENERATORS)
+    variants = []
+    for name in sorted(GENERATORS):
+        properties: dict[str, Any] = {"generator": {"const": name}}
+        for parameter, default in generator_parameters(name).items():
+            properties[parameter] = {"description": f"parameter of the {name!r} generator (meshes.{name})"}
+            if default is not None:
+                properties[parameter]["default"] = json.loads(json.dumps(default))
+        variants.append({"properties": properties, "additionalProperties": False})
+    schema["oneOf"] = variants
+    del schema["additionalProperties"]
+    del schema["properties"]["params"]
+
+
+class MeshConfig(Variant):
+    """[mesh]: exactly one of ``generator`` (a generator of meshes.GENERATORS, its parameters as the other
+    keys of the table) or ``file`` (a mesh file read with meshio or gmsh)."""
+
+    kind_key = "mesh"
+
+    generator: Text | None = key("name of the mesh generator (meshes.GENERATORS); its parameters are the table's "
+                                "other keys", default=None)
+    file: ExistingFile | None = key(
+        "mesh file (.msh, .vtu, .xdmf, .mesh, ... : what meshio reads), relative to the configuration file",
+        default=None)
+    params: dict[str, Any] = key("the generator's parameters (the table's other keys)", default_factory=dict)
+    regions: dict[str, Integer] = key(
+        "region name -> cell tag of the file (not for .msh: its physical groups name themselves)", default_factory=dict)
+    boundaries: dict[str, Integer] = key(
+        "boundary name -> facet tag of the file (not for .msh)", default_factory=dict)
+    cell_data: Name | None = key("name of the file's cell data holding the region tags (default: the file's only "
+                                 "integer cell data)", default=None)
+    facet_data: Name | None = key("name of the file's facet data holding the boundary tags", default=None)
+
+    @classmethod
+    def kind(cls) -> str:
+        return cls.keys[0]
+
+    @classmethod
+    def not_applicable(cls, key: str) -> str:
+        return "only applies to mesh.file"
+
+
+class GeneratedMesh(MeshConfig):
+    """[mesh] with ``generator``: the generator's parameters are the table's other keys (their defaults
+    otherwise); their values are checked by the generator when the mesh is made."""
+
+    model_config = {"json_schema_extra": _generator_schema}
+    keys = ("generator", "params")
+    generator: Text = key("name of the mesh generator (meshes.GENERATORS); its parameters are the table's other keys")
+
+    @classmethod
+    def gather(cls, data: dict[str, Any]) -> dict[str, Any]:
+        params = {k: v for k, v in data.items() if k != "generator" and k not in _FILE_KEYS}
+        return {**{k: v for k, v in data.items() if k == "generator" or k in _FILE_KEYS}, "params": params}
+
+    @field_validator("generator")
+    @classmethod
+    def _known_generator(cls, name: str) -> str:
+        from meshes import GENERATORS
+
+        if name not in GENERATORS:
+            fail(f"{name!r} is not one of {', '.join(sorted(GENERATORS))}")
+        return name
+
+    @field_validator("params")
+    @classmethod
+    def _known_parameters(cls, params: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
+        from meshes import generator_parameters
+
+        name = info.data.get("generator")
+        if name is not None:
+            accepted = generator_parameters(name)
+            for parameter in params:
+                if parameter not in accepted:
+                    fail(f"unknown parameter of generator {name!r} (allowed: generator, {', '.join(accepted)})",
+                         parameter, up=1)
+        return params
+
+
+class MeshFile(MeshConfig):
+    """[mesh] with ``file``: regions and boundaries are the file's tags, named by ``regions`` and
+    ``boundaries`` (a gmsh .msh file names them by its physical groups)."""
+
+    keys = ("file", *_FILE_KEYS)
+    file: ExistingFile = key(
+        "mesh file (.msh, .vtu, .xdmf, .mesh, ... : what meshio reads), relative to the configuration file")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _msh_names_itself(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("file"), str) and Path(data["file"]).suffix == ".msh":
+            for k in _FILE_KEYS:
+                if k in data:
+                    fail("a gmsh .msh file names its physical groups itself; remove this key", k)
+        return data
+
+
+Mesh = kinds(GeneratedMesh, MeshFile, by=ByPresence(("generator", "file"),
+                                                   "give exactly one of mesh.generator or mesh.file"))
+
+__all__ = ["GeneratedMesh", "Mesh", "MeshConfig", "MeshFile"]

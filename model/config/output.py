@@ -1,0 +1,17 @@
+"""[output]: where the results go and which files are written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from model.config.base import Flag, Section, key
+
+
+class OutputConfig(Section):
+    """[output]: the results folder (summary.json is always written) and the optional file formats."""
+
+    dir: Path = key("folder of the results, relative to the working directory (the command line's --out wins)",
+                    default=Path("results"))
+    xdmf: Flag = key("write the displacement and cell fields per step as XDMF + HDF5", default=True)
+    vtu: Flag = key("write one VTU file per step", default=True)
+    png: Flag = key("render deformed.png, a picture of the deformed body at the last step", default=True)
