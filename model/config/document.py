@@ -27,6 +27,7 @@ from model.config.mesh import Mesh
 from model.config.output import OutputConfig
 from model.config.probe import ProbeConfig
 from model.config.solver import NewtonSettings, Solver
+from model.config.units import UnitsConfig
 from model.errors import ConfigError
 
 
@@ -62,6 +63,7 @@ class RunConfig(Section):
         "rigid bones: motions and shapes", default=(), alias="bone")
     contacts: tuple[Contact, ...] = key("contacts with rigid obstacles", default=(), alias="contact")
     dynamics: DynamicsSpec = key("time integration (default: quasi-static)", default_factory=DynamicsSpec)
+    units: UnitsConfig = key("the system of units the numbers are in (labels only)", default_factory=UnitsConfig)
 
     @property
     def petsc_options(self) -> dict[str, str | int | float | bool]:
