@@ -18,6 +18,9 @@ arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_inserti
                                                               proximal distal skin
 sphere      body                                              surface (octant: xmin ymin zmax surface)
 =========== ================================================ =======================
+
+Files: :func:`read_msh` (a gmsh mesh) and :func:`read_geo` (a gmsh geometry script, meshed here); both
+name regions and boundaries by the file's physical groups.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from meshes.cook import cook
 from meshes.cylinder import cylinder
 from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
 from meshes.fusiform import fusiform
+from meshes.geo import geo_parameters, read_geo
 from meshes.sphere import sphere
 from meshes.trunk import trunk
 
@@ -48,6 +52,8 @@ __all__ = [
     "fusiform",
     "generate",
     "generator_parameters",
+    "geo_parameters",
+    "read_geo",
     "read_msh",
     "sphere",
     "trunk",

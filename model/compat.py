@@ -16,6 +16,7 @@ What differs between the two releases, and where it is handled here:
 - ``Expression.eval(cells)`` (0.5) or ``eval(mesh, cells)`` (0.9);
 - ``apply_lifting``/``set_bc`` scale the lifting with ``scale=`` (0.5) or ``alpha=`` (0.9);
 - point location: ``BoundingBoxTree``/``compute_collisions`` (0.5) or ``bb_tree``/``compute_collisions_points``;
+- facet geometry: ``cpp.mesh.entities_to_geometry(mesh._mesh, ...)`` (0.5) or ``mesh.entities_to_geometry`` (0.9);
 - class names: ``FormMetaClass``, ``DirichletBCMetaClass``, ``MeshTagsMetaClass`` (0.5) or ``Form``,
   ``DirichletBC``, ``MeshTags`` (0.9).
 """
@@ -175,6 +176,22 @@ def colliding_cells(msh: dmesh.Mesh, points: np.ndarray) -> Any:
         tree = geometry.bb_tree(msh, tdim)
         candidates = geometry.compute_collisions_points(tree, points)
     return geometry.compute_colliding_cells(msh, candidates, points)
+
+
+def exterior_facet_vertices(msh: dmesh.Mesh) -> np.ndarray:
+    """The vertex coordinates of this rank's exterior facets (those of one cell of the whole mesh, not
+    the facets between ranks): (num_facets, 3, 3) for triangles, owned and ghost facets alike."""
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    facets = np.asarray(dmesh.exterior_facet_indices(msh.topology), dtype=np.int32)
+    if LEGACY:
+        from dolfinx import cpp
+
+        nodes = cpp.mesh.entities_to_geometry(msh._mesh, tdim - 1, facets, False)
+    else:
+        nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets)
+    nodes = np.asarray(nodes).reshape(len(facets), -1)[:, :tdim]  # the vertices (first nodes of each facet)
+    return msh.geometry.x[nodes][:, :, :3].copy()
 
 
 # --- evaluation, PETSc --------------------------------------------------------------------------------

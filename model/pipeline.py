@@ -3,8 +3,9 @@
     build(config)   the Domain (model.domain), the fields on it (fibres, activation, shape targets:
                     model.fields), the ElasticityProblem with every load, boundary condition, bone tie
                     and contact term (model.problem), and the probes. Every name the configuration
-                    uses (regions, boundaries, probes inside the body, full and non-overlapping material
-                    coverage) is checked here and raises ConfigError naming the key, before any solve.
+                    uses (regions, boundaries, probes inside the body or snapped onto it, full and
+                    non-overlapping material coverage) is checked here and raises ConfigError naming
+                    the key, before any solve.
     run(config)     the solver [solver] asks for (model.solvers), load steps 0 -> 1 with cut-back, or
                     time steps of a [dynamics] scheme, and after every attempted step summary.json,
                     the XDMF/VTU time series and finally the PNG (model.output).
@@ -33,7 +34,7 @@ import forms
 from model import compat
 from model.config import RunConfig
 from model.config.expressions import compile_expression, uses_load_factor
-from model.domain import Domain, Probes, make_domain
+from model.domain import Domain, Probes, make_domain, place_probes
 from model.errors import ConfigError, SolveFailed
 from model.fields.activation import ActivationField
 from model.fields.fibres import FibreField, solve_laplace
@@ -152,10 +153,7 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     """Domain, problem with all loads and boundary conditions, and probes of a configuration."""
     domain = make_domain(config.mesh, comm)
     _check_names(config, domain)
-    probes = Probes(domain.mesh, {p.name: p.point for p in config.probes})
-    if probes.missing:  # the same on every rank (reduced over ranks)
-        i = [p.name for p in config.probes].index(probes.missing[0])
-        raise ConfigError(f"probe[{i}].point: {list(config.probes[i].point)} is outside the mesh")
+    probes = place_probes(domain.mesh, config.probes, config.units.unit("length"))
     _check_fibre_names(config, domain)
     disc = config.discretization
     fibres = _fibre_fields(config, domain)
@@ -365,12 +363,15 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "ranks": comm.size,
         "region_volumes": volumes.reference,
         "boundary_areas": volumes.areas,
+        "probe_points": setup.probes.points_by_name(),
         "solver": {"method": config.solver.method, "tangent": config.solver.tangent},
         "versions": versions,
         "wall_time_s": 0.0,
         "status": "running",
         "steps": [],
     }
+    if setup.probes.snapped:
+        summary["snapped_probes"] = setup.probes.snapped
     if dynamic:
         spec = config.dynamics
         summary["dynamics"] = {"scheme": spec.scheme, "dt": spec.dt, "end_time": spec.end_time,

@@ -8,9 +8,11 @@ from typing import Any
 
 from pydantic import ValidationInfo, field_validator, model_validator
 
-from model.config.base import ByPresence, ExistingFile, Integer, Name, Text, Variant, fail, key, kinds
+from model.config.base import ByPresence, ExistingFile, Integer, Name, Number, Text, Variant, fail, key, kinds
 
-_FILE_KEYS = ("regions", "boundaries", "cell_data", "facet_data")
+_FILE_KEYS = ("regions", "boundaries", "cell_data", "facet_data", "parameters")
+#: files that name their regions and boundaries by their physical groups
+_GMSH = (".msh", ".geo")
 
 
 def _generator_schema(schema: dict[str, Any]) -> None:
@@ -31,6 +33,10 @@ def _generator_schema(schema: dict[str, Any]) -> None:
     del schema["properties"]["params"]
 
 
+_FILE_MEANING = ("mesh file, relative to the configuration file's folder: a gmsh mesh (.msh) or geometry script "
+                 "(.geo, meshed when read), or any tetrahedral mesh meshio reads (.vtu, .xdmf, .inp, .mesh, ...)")
+
+
 class MeshConfig(Variant):
     """[mesh]: exactly one of ``generator`` (a generator of meshes.GENERATORS, its parameters as the other
     keys of the table) or ``file`` (a mesh file read with meshio or gmsh)."""
@@ -39,17 +45,19 @@ class MeshConfig(Variant):
 
     generator: Text | None = key("name of the mesh generator (meshes.GENERATORS); its parameters are the table's "
                                 "other keys", default=None)
-    file: ExistingFile | None = key(
-        "mesh file (.msh, .vtu, .xdmf, .mesh, ... : what meshio reads), relative to the configuration file",
-        default=None)
+    file: ExistingFile | None = key(_FILE_MEANING, default=None)
     params: dict[str, Any] = key("the generator's parameters (the table's other keys)", default_factory=dict)
     regions: dict[str, Integer] = key(
-        "region name -> cell tag of the file (not for .msh: its physical groups name themselves)", default_factory=dict)
+        "region name -> cell tag of the file (not for .msh or .geo: their physical groups name themselves)",
+        default_factory=dict)
     boundaries: dict[str, Integer] = key(
-        "boundary name -> facet tag of the file (not for .msh)", default_factory=dict)
+        "boundary name -> facet tag of the file (not for .msh or .geo)", default_factory=dict)
     cell_data: Name | None = key("name of the file's cell data holding the region tags (default: the file's only "
                                  "integer cell data)", default=None)
     facet_data: Name | None = key("name of the file's facet data holding the boundary tags", default=None)
+    parameters: dict[str, Number] = key(
+        "only for a .geo file: values of the script's DefineConstant parameters by name, e.g. { size = 0.004 }",
+        default_factory=dict)
 
     @classmethod
     def kind(cls) -> str:
@@ -99,20 +107,37 @@ class GeneratedMesh(MeshConfig):
 
 class MeshFile(MeshConfig):
     """[mesh] with ``file``: regions and boundaries are the file's tags, named by ``regions`` and
-    ``boundaries`` (a gmsh .msh file names them by its physical groups)."""
+    ``boundaries`` (a gmsh .msh file or .geo script names them by its physical groups; a .geo script is
+    meshed when read, its DefineConstant parameters set by ``parameters``)."""
 
     keys = ("file", *_FILE_KEYS)
-    file: ExistingFile = key(
-        "mesh file (.msh, .vtu, .xdmf, .mesh, ... : what meshio reads), relative to the configuration file")
+    file: ExistingFile = key(_FILE_MEANING)
 
     @model_validator(mode="before")
     @classmethod
-    def _msh_names_itself(cls, data: Any) -> Any:
-        if isinstance(data, dict) and isinstance(data.get("file"), str) and Path(data["file"]).suffix == ".msh":
+    def _gmsh_names_itself(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("file"), str):
+            suffix = Path(data["file"]).suffix
             for k in _FILE_KEYS:
-                if k in data:
-                    fail("a gmsh .msh file names its physical groups itself; remove this key", k)
+                if k in data and suffix in _GMSH and k != "parameters":
+                    fail(f"a gmsh {suffix} file names its physical groups itself; remove this key", k)
+                if k == "parameters" and k in data and suffix != ".geo":
+                    fail("only applies to a gmsh .geo script", k)
         return data
+
+    @field_validator("parameters")
+    @classmethod
+    def _declared_parameters(cls, parameters: dict[str, float], info: ValidationInfo) -> dict[str, float]:
+        from meshes import geo_parameters
+
+        path = info.data.get("file")
+        if parameters and path is not None:
+            declared = geo_parameters(path)
+            for name in parameters:
+                if name not in declared:
+                    fail(f"{path.name} declares no parameter {name!r} (its DefineConstant parameters: "
+                         f"{', '.join(declared) or 'none'})", name)
+        return parameters
 
 
 Mesh = kinds(GeneratedMesh, MeshFile, by=ByPresence(("generator", "file"),

@@ -31,6 +31,11 @@ def load_mesh_data(cfg: MeshConfig) -> meshes.MeshData:
             key = f"mesh.{param}" if param in cfg.params else "mesh"
             raise ConfigError(f"{key}: {message}") from None
     assert cfg.file is not None
+    if cfg.file.suffix == ".geo":  # a gmsh script, meshed here; its physical groups name regions and boundaries
+        try:
+            return meshes.read_geo(cfg.file, cfg.parameters)
+        except ValueError as err:
+            raise ConfigError(f"mesh.file: cannot mesh {cfg.file}: {' '.join(str(err).split())}") from None
     try:
         if cfg.file.suffix == ".msh":
             data = meshes.read_msh(cfg.file)
