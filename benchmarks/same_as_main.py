@@ -101,6 +101,9 @@ def main(argv: list[str] | None = None) -> int:
             print("| example | base (s) | this (s) | max relative difference | where | keys on one side only |")
             print("|---|---|---|---|---|---|")
             for name in names:
+                if not (base_tree / "examples" / f"{name}.toml").is_file():
+                    print(f"| {name} | - | - | - | new example, not in {args.base} | - |", flush=True)
+                    continue
                 outs = {}
                 seconds = {}
                 for side, tree in (("base", base_tree), ("this", ROOT)):
