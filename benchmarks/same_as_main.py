@@ -5,7 +5,7 @@
 Checks out REV (e.g. the main branch before a restructure) into a temporary git worktree, runs
 ``python -m model run examples/NAME.toml`` there and in this checkout, in the same process
 environment, one after the other, and compares the two summary.json files of every example: every
-number of every step (probes, reactions, energy, volumes, contact, activation, Newton iterations,
+number of every step (probes, reactions, energies, volumes, contact, activation, Newton iterations,
 SNES reasons, load factors) and of the header (dofs, cells, volumes, areas), relative to the largest
 magnitude of the same quantity in the run (so a reaction that is zero up to rounding is judged
 against the largest reaction). Wall and solve times are not compared, nor keys that only one side

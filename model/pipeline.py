@@ -11,10 +11,18 @@
                     the XDMF/VTU time series and finally the PNG (model.output).
 
 summary.json is rewritten after every attempted step, so a failed run keeps what it did. Each
-converged step records probes, reactions and the strain energy (plus contact, sliding and, in a
-dynamic run, time and kinetic energy); a failed attempt records its SNES reason and is followed by a
-cut-back. In a dynamic run the "load factor" passed to expressions, activation curves and bone
-motions is the time t, and constant loads are scaled by min(t / load_ramp, 1).
+converged step records probes, reactions and the energies (strain_energy, active_energy,
+contact/sliding penalty energies, load_potential, total_potential: ElasticityProblem.energies; plus
+contact, sliding and, in a dynamic run, time and kinetic energy); a failed attempt records its SNES
+reason and is followed by a cut-back.
+
+One run per output folder: before anything is solved or written, the files an earlier run's
+summary.json accounts for are removed (model.output.writer.remove_earlier_run; a user's other files
+stay), and the new summary.json lists in "files" every file this run wrote there, kept current. There
+is no restart option; a future --restart would keep the earlier run's files instead.
+
+In a dynamic run the "load factor" passed to expressions, activation curves and bone motions is the
+time t, and constant loads are scaled by min(t / load_ramp, 1).
 """
 
 from __future__ import annotations
@@ -39,7 +47,7 @@ from model.errors import ConfigError, SolveFailed
 from model.fields.activation import ActivationField
 from model.fields.fibres import FibreField, solve_laplace
 from model.fields.targets import TargetField
-from model.output.writer import ResultWriter, write_json_atomic
+from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.measurements import Volumes, reactions
 from model.solvers.loadstepping import continuation, step_loads
@@ -226,13 +234,24 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     return Setup(domain, problem, probes, targets, fibres, activation, contacts, sliding)
 
 
+#: the energy keys of a converged step besides "<name>_energy" (ElasticityProblem.energies)
+ENERGY_KEYS = ("strain_energy", "active_energy", "load_potential", "total_potential")
+
+
+def units_summary(config: RunConfig) -> dict[str, str]:
+    """summary.json's "units": the [units] system and the units of the reported quantities."""
+    units = config.units
+    return {"system": units.system, **{d: units.unit(d) for d in ("length", "force", "stress", "energy", "time")}}
+
+
 @dataclass(frozen=True)
 class RunResult:
     """What a run produced: its summary (as in summary.json), where its files are, and per-step series.
 
     ``probes[name]`` and ``reactions[boundary]`` are arrays (converged steps, 3), ``load_factors`` and
-    ``energy`` arrays over the converged steps; ``files`` maps "summary", "xdmf", "png" and "vtu" (a
-    list) to the paths that exist.
+    ``energies[key]`` (strain_energy, active_energy, load_potential, total_potential, ...: every energy key
+    of the steps) arrays over the converged steps; ``files`` maps "summary", "xdmf", "png" and "vtu" (a
+    list) to the paths that exist. ``energy`` is the former summary key "energy" (deprecated).
     """
 
     summary: dict[str, Any]
@@ -251,8 +270,24 @@ class RunResult:
         return np.array([s["load_factor"] for s in self.converged_steps])
 
     @property
+    def energies(self) -> dict[str, np.ndarray]:
+        """Per energy key of the converged steps (ENERGY_KEYS and "<name>_energy"), its values (NaN where a
+        step has none, e.g. load_potential with a follower pressure)."""
+        steps = self.converged_steps
+        keys = dict.fromkeys(k for s in steps for k in s if k.endswith("_energy") or k in ENERGY_KEYS)
+        keys.pop("kinetic_energy", None)
+        return {k: np.array([np.nan if s.get(k) is None else s[k] for s in steps]) for k in keys}
+
+    @property
     def energy(self) -> np.ndarray:
-        return np.array([s["energy"] for s in self.converged_steps])
+        """Deprecated: the stored energy the summary used to call "energy", int psi(F; alpha) dx plus the
+        added (contact, sliding) energies = total_potential - load_potential. Use ``energies``."""
+        import warnings
+
+        warnings.warn("RunResult.energy is deprecated: use RunResult.energies['strain_energy'] (passive), "
+                      "['active_energy'] or ['total_potential']", DeprecationWarning, stacklevel=2)
+        return np.array([sum(v for k, v in s.items() if k.endswith("_energy") and k != "kinetic_energy")
+                         for s in self.converged_steps])
 
     @property
     def probes(self) -> dict[str, np.ndarray]:
@@ -348,12 +383,14 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     if comm.rank == 0:
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
+    remove_earlier_run(directory, comm)  # before any solve and before anything is written there
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
     if dynamic and config.dynamics.initial == "equilibrium":
         _initial_equilibrium(setup, config)
     dynamics = _dynamics(setup, config) if dynamic else None
     solver = make_solver(problem, config, setup.contacts)
-    writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png)
+    writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png,
+                          stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"))
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
     volumes = Volumes(problem)
@@ -366,6 +403,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "probe_points": setup.probes.points_by_name(),
         "solver": {"method": config.solver.method, "tangent": config.solver.tangent},
         "versions": versions,
+        "units": units_summary(config),
         "wall_time_s": 0.0,
         "status": "running",
         "steps": [],
@@ -379,6 +417,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
 
     def save() -> None:
         summary["wall_time_s"] = time.perf_counter() - start
+        summary["files"] = sorted({*writer.files, SUMMARY})
         if comm.rank == 0:
             write_json_atomic(directory / "summary.json", summary)
 
@@ -396,7 +435,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         if setup.activation is not None:
             step["activation"] = setup.activation.values(t)
         if r.converged:
-            step["energy"] = problem.total_energy()
+            step.update(problem.energies())
             if dynamics is not None:
                 step["kinetic_energy"] = dynamics.kinetic_energy()
             step["volumes"] = volumes.current()

@@ -94,7 +94,7 @@ volume = np.abs(signed_volumes(mesh.points, mesh.cells))
 centroids = mesh.points[mesh.cells].mean(axis=1)
 law = config.materials[0].law
 t = np.array([s["load_factor"] for s in steps])
-energy = np.array([s["energy"] for s in steps])
+energy = np.array([s["strain_energy"] for s in steps])
 undeformed = []
 for ti in t:
     S = targets.sway(centroids, ti)

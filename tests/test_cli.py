@@ -24,8 +24,8 @@ from conftest import EXAMPLES, ROOT, environment, example, serial_only, write_to
 pytestmark = serial_only
 
 PROGRESS = re.compile(r"^step\s+(\d+)\s+load\s+([0-9.]+)\s+newton\s+(\d+)\s+\|R\|\s+(\S+)\s+(.*)$")
-STEP_KEYS = {"load_factor", "newton_iterations", "converged", "snes_reason", "residual_norm", "energy", "probes",
-             "reactions"}
+STEP_KEYS = {"load_factor", "newton_iterations", "converged", "snes_reason", "residual_norm", "strain_energy",
+             "load_potential", "total_potential", "probes", "reactions"}
 
 
 def run_cli(config: Path, out: Path, ranks: int = 1) -> subprocess.CompletedProcess:
@@ -73,10 +73,11 @@ def test_run_writes_the_contract_summary(serial_run: tuple[subprocess.CompletedP
         assert step["converged"] is True and step["snes_reason"] > 0 and step["newton_iterations"] >= 1
         assert set(step["probes"]) == {"corner"} and len(step["probes"]["corner"]) == 3
         assert set(step["reactions"]) == {"xmin", "ymin", "zmin"}
-        assert step["energy"] > 0
+        assert step["strain_energy"] > 0 > step["total_potential"]
         # equilibrium: xmin carries the whole traction 2e3 * load factor on a unit face
         assert step["reactions"]["xmin"][0] == pytest.approx(-2.0e3 * step["load_factor"], rel=1e-8)
-    energies = [step["energy"] for step in summary["steps"]]
+    assert summary["units"]["stress"] == "Pa" and summary["units"]["length"] == "m"
+    energies = [step["strain_energy"] for step in summary["steps"]]
     assert energies == sorted(energies)
 
 
@@ -181,6 +182,7 @@ def test_mpi_run_matches_serial(serial_run: tuple[subprocess.CompletedProcess, P
             for name in a[kind]:
                 np.testing.assert_allclose(b[kind][name], a[kind][name], rtol=1e-10, atol=1e-10 * scale,
                                            err_msg=f"{kind} {name} at load factor {a['load_factor']}")
-        assert b["energy"] == pytest.approx(a["energy"], rel=1e-10)
+        for key in ("strain_energy", "load_potential", "total_potential"):
+            assert b[key] == pytest.approx(a[key], rel=1e-10), key
     mesh = meshio.read(out / "step_0005.vtu")  # gathered on rank 0: the whole mesh
     assert mesh.points.shape == (125, 3) and len(mesh.cells[0].data) == 384

@@ -268,7 +268,8 @@ def _writer(problem: ElasticityProblem, out: Path | None, config: RunConfig) -> 
     if out is None:
         return None
     o = config.output
-    return ResultWriter(problem, out, o.xdmf, o.vtu, o.png)
+    return ResultWriter(problem, out, o.xdmf, o.vtu, o.png, stress_unit=config.units.unit("stress"),
+                        length_unit=config.units.unit("length"))
 
 
 def run_stage1(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> Stage1:

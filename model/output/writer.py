@@ -10,7 +10,13 @@ Fields written each converged step:
   have none (a body with no energy density there carries no stress);
 - the problem's per-cell input fields (``fibre_direction`` a0, ``activation`` alpha) when present.
 The VTU files (meshio) are written on rank 0 from the whole mesh gathered there;
-the PNG is rendered from the last VTU (model.output.render, in a subprocess).
+the PNG is rendered from the last VTU (model.output.render, in a subprocess), its colour bar titled
+with the stress unit and its title line giving the largest displacement with the length unit.
+
+One run per folder: ``ResultWriter.files`` lists every file the writer put into the folder (names
+relative to it, the same list on every rank), which the pipeline records as summary.json's "files";
+``remove_earlier_run`` deletes, before a new run writes anything, the files an earlier run's
+summary.json accounts for, and nothing else.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from dolfinx.io import XDMFFile
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from model import compat
@@ -34,6 +41,72 @@ from model.output.render import render_in_subprocess
 from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
+
+
+SUMMARY = "summary.json"
+
+
+def earlier_run_files(directory: Path) -> tuple[list[str], str] | None:
+    """(names of the files an earlier run wrote into ``directory`` that still exist, its status), or None
+    when ``directory``/summary.json is missing, unreadable or not a summary of this model.
+
+    A summary of this model has "steps" (a list) and "status". Its files are its "files" list; a
+    summary written before "files" existed accounts for step_0001.vtu ... step_NNNN.vtu (N its
+    converged steps), results.xdmf and results.h5 (when it has a converged step) and deformed.png (when
+    it has "png"). Only plain names of regular files directly in ``directory`` are returned, summary.json
+    last; a file the summary does not account for is never among them.
+    """
+    path = Path(directory) / SUMMARY
+    if not path.is_file():
+        return None
+    try:
+        earlier = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        log.warning("%s is not a summary of this model (%s): left alone", path, err)
+        return None
+    if not (isinstance(earlier, dict) and isinstance(earlier.get("steps"), list) and "status" in earlier):
+        log.warning("%s is not a summary of this model (no \"steps\" and \"status\"): left alone", path)
+        return None
+    if isinstance(earlier.get("files"), list):
+        names = [n for n in earlier["files"] if isinstance(n, str)]
+    else:
+        converged = sum(1 for s in earlier["steps"] if isinstance(s, dict) and s.get("converged"))
+        names = [f"step_{i:04d}.vtu" for i in range(1, converged + 1)]
+        if converged:
+            names += ["results.xdmf", "results.h5"]
+        if earlier.get("png") == "deformed.png":
+            names.append("deformed.png")
+    names = [n for n in dict.fromkeys(names) if n != SUMMARY] + [SUMMARY]
+    folder = Path(directory)
+    keep = [n for n in names if Path(n).name == n and n not in (".", "..") and (folder / n).is_file()
+            and not (folder / n).is_symlink()]
+    return keep, str(earlier.get("status"))
+
+
+def remove_earlier_run(directory: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> int:
+    """Delete the files of an earlier run in ``directory`` (earlier_run_files), on rank 0, then a barrier.
+
+    Called by the pipeline before a run writes anything into the folder, so that the folder holds
+    exactly one run: the files the new summary.json lists. Files the earlier summary does not account
+    for (a user's own) are left alone. Logs "removed N files of an earlier run in DIR (summary.json of
+    STATUS)". Returns N on every rank. (There is no restart: a future --restart would keep them.)
+    """
+    removed = 0
+    if comm.rank == 0:
+        found = earlier_run_files(Path(directory))
+        if found is not None:
+            names, status = found
+            for name in names:
+                try:
+                    (Path(directory) / name).unlink()
+                    removed += 1
+                except FileNotFoundError:
+                    pass
+            log.warning("removed %d files of an earlier run in %s (summary.json of %s)", removed, directory,
+                        f"a {status} run")
+    removed = comm.bcast(removed, root=0)
+    comm.barrier()
+    return removed
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
@@ -90,11 +163,17 @@ def _form_or_none(form: ufl.Form | int) -> compat.Form | None:
 
 
 class ResultWriter:
-    """Writes the outputs of one run into ``directory`` (created if needed)."""
+    """Writes the outputs of one run into ``directory`` (created if needed).
+
+    ``files``: the names (relative to ``directory``) of every file written so far, in order, the same on
+    every rank; ``stress_unit`` and ``length_unit`` label the PNG (colour bar and title line).
+    """
 
     def __init__(self, problem: ElasticityProblem, directory: Path, xdmf: bool = True, vtu: bool = True,
-                 png: bool = True) -> None:
+                 png: bool = True, stress_unit: str = "", length_unit: str = "") -> None:
         self.problem = problem
+        self.stress_unit, self.length_unit = stress_unit, length_unit
+        self.files: list[str] = []
         self.comm = problem.domain.mesh.comm
         self.directory = Path(directory)
         if self.comm.rank == 0:
@@ -108,6 +187,7 @@ class ResultWriter:
         if xdmf:
             self.xdmf = XDMFFile(self.comm, str(self.directory / "results.xdmf"), "w")
             self.xdmf.write_mesh(msh)
+            self._add("results.xdmf", "results.h5")
         self.count = 0
         self.last_gathered: dict[str, np.ndarray] | None = None
 
@@ -125,8 +205,14 @@ class ResultWriter:
         self.count += 1
         if self.want_vtu or self.want_png:
             self.last_gathered = self.gather(fields)
-            if self.want_vtu and self.comm.rank == 0:
-                write_vtu(self.directory / f"step_{self.count:04d}.vtu", self.last_gathered)
+            if self.want_vtu:
+                if self.comm.rank == 0:
+                    write_vtu(self.directory / f"step_{self.count:04d}.vtu", self.last_gathered)
+                self._add(f"step_{self.count:04d}.vtu")
+
+    def _add(self, *names: str) -> None:
+        """Record files written into the folder (on every rank, whichever rank wrote them)."""
+        self.files += [n for n in names if n not in self.files]
 
     def gather(self, fields: dict[str, fem.Function]) -> dict[str, np.ndarray] | None:
         """The whole mesh and fields on rank 0 (None elsewhere): points, cells, u, cell data."""
@@ -161,20 +247,30 @@ class ResultWriter:
         return out
 
     def write_png(self, title: str = "") -> Path | None:
-        """The deformed body coloured by von Mises stress (rank 0), from the last written step."""
-        if not self.want_png or self.comm.rank != 0 or self.last_gathered is None:
+        """The deformed body coloured by von Mises stress, from the last written step (rendered on rank 0;
+        collective: every rank returns the path, or None when there is no PNG).
+
+        The colour bar is titled "von Mises stress [stress_unit]", the title line is ``title`` and the
+        largest displacement in length_unit (model.output.render).
+        """
+        if not self.want_png or self.count == 0:
             return None
         path = self.directory / "deformed.png"
-        vtu = self.directory / f"step_{self.count:04d}.vtu"
-        if not self.want_vtu:
-            vtu = self.directory / "deformed.vtu"
-            write_vtu(vtu, self.last_gathered)
-        try:
-            render_in_subprocess(vtu, path, title)
-        except (RuntimeError, OSError, subprocess.TimeoutExpired) as err:
-            log.warning("no PNG written: %s", err)
-            return None
-        return path
+        written: list[str] = []
+        if self.comm.rank == 0 and self.last_gathered is not None:
+            vtu = self.directory / f"step_{self.count:04d}.vtu"
+            if not self.want_vtu:
+                vtu = self.directory / "deformed.vtu"
+                write_vtu(vtu, self.last_gathered)
+                written.append(vtu.name)
+            try:
+                render_in_subprocess(vtu, path, title, self.stress_unit, self.length_unit)
+                written.append(path.name)
+            except (RuntimeError, OSError, subprocess.TimeoutExpired) as err:
+                log.warning("no PNG written: %s", err)
+        written = self.comm.bcast(written, root=0)
+        self._add(*written)
+        return path if path.name in written else None
 
     def close(self) -> None:
         if self.xdmf is not None:

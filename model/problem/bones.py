@@ -248,7 +248,7 @@ def add_sliding(problem: ElasticityProblem, surface: str, obstacle: Obstacle | B
     frame.follow(problem)
     g = frame.gap(obstacle, current_position(problem))
     stiffness = fem.Constant(problem.domain.mesh, PETSc.ScalarType(k))  # shared compiled code for any k
-    problem.add_energy(sliding_energy(g, stiffness) * ds)
+    problem.add_energy(sliding_energy(g, stiffness) * ds, "sliding")
     xv = ufl.variable(current_position(problem))
     gv = frame.gap(obstacle, xv)
     traction = -stiffness * gv * ufl.diff(gv, xv)

@@ -124,7 +124,7 @@ class PenaltyContact(_SurfaceContact):
         self.k_constant = fem.Constant(problem.domain.mesh, PETSc.ScalarType(self.k))
         self._add_fields()
         self.energy = self._energy(self.gap)
-        problem.add_energy(self.energy * self.ds)
+        problem.add_energy(self.energy * self.ds, "contact")
         gv, n = self._normal()
         traction = self._pressure(gv) * n
         self.force_forms = [fem.form(traction[i] * self.ds) for i in range(3)]

@@ -17,13 +17,32 @@ The Jacobian is always ufl.derivative of the residual. Dirichlet values are lamb
 reference value.
 
 Energies added with add_energy (contact and sliding penalties, a user's own terms) enter the residual
-as dPi/du [v], the reported energy (total_energy) and, for their cell integrals psi dx, the stress
-outputs as P = dpsi/dF (stress_terms), so that a problem built from add_energy alone reports the same
-quantities as one built from laws.
+as dPi/du [v], the stored energy (total_energy, energies) and, for their cell integrals psi dx, the
+stress outputs as P = dpsi/dF (stress_terms), so that a problem built from add_energy alone reports the
+same quantities as one built from laws.
+
+The energies reported per step (``energies()``), at the current solution and load factor:
+
+    strain_energy    = sum_r int psi_r(F; alpha = 0) dx_r       passive elastic energy of the materials
+    active_energy    = sum_r int psi_r(F; alpha) - psi_r(F; 0) dx_r
+                                                               the fibre activation's term (activated laws only)
+    <name>_energy    = Pi_name                                  each energy added with add_energy, by its name
+                                                               (contact, sliding, added)
+    load_potential   = - lambda sum_b int t_b . u ds_b - lambda sum_r int b_r . u dx_r
+                                                               minus the work of the dead loads
+    total_potential  = the sum of all of the above              (stationary at equilibrium)
+
+psi_r(F; 0) is the law with its activation field replaced by zero (a separate form, compiled once).
+For the muscle law the active term is sigma_max alpha (Fa(s) - Fa(1/l_ofl)): negative where the fibres
+are shorter than at rest (isometric contraction), positive where longer. In the mixed formulation with
+kappa = inf psi is the Lagrangian density W + p g (p g vanishes at convergence). A follower pressure has
+no potential: with one, load_potential and total_potential are not reported (and the work of the
+pressure, path dependent, is not either).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -34,7 +53,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms import Law
+from forms import Law, law_fields
 from forms.kinematics import cauchy_stress, deformation_gradient, von_mises
 from model import compat
 from model.domain import Domain
@@ -104,12 +123,27 @@ class ElasticityProblem:
         self._state_stamp: np.ndarray | None = None
         self.internal = 0
         self.external = 0
-        #: the materials' energy, int psi dx (a zero form when there is no material: always a ufl.Form)
-        self.strain_energy: ufl.Form = fem.Constant(msh, PETSc.ScalarType(0.0)) * self.dx
+        zero = fem.Constant(msh, PETSc.ScalarType(0.0))
+        #: the materials' energy int psi(F; alpha) dx, active term included (a zero form when there is no
+        #: material: always a ufl.Form)
+        self.material_energy: ufl.Form = zero * self.dx
+        #: the materials' passive energy int psi(F; alpha = 0) dx
+        self.passive_energy: ufl.Form = zero * self.dx
+        #: sum_r int psi_r(F; alpha) - psi_r(F; 0) dx_r over the activated materials, or None (none is)
+        self.active_energy: ufl.Form | None = None
+        #: the zero activation the passive energy is built with
+        self._no_activation = fem.Constant(msh, PETSc.ScalarType(0.0))
         #: (P, dx): first Piola-Kirchhoff stress of each material and of each cell integral of an added energy
         self.stress_terms: list[tuple[ufl.core.expr.Expr, ufl.Measure]] = []
         self.extra_energies: list[ufl.Form] = []
+        #: the name of each added energy (parallel to extra_energies): "contact", "sliding", "added", ...
+        self.extra_energy_names: list[str] = []
+        #: - lambda (int t . u ds + int b . u dx) of the dead loads (a zero form when there is none)
+        self.load_potential: ufl.Form = zero * self.dx
+        #: the boundaries carrying a follower pressure (no potential)
+        self.follower_pressures: list[str] = []
         self._energy_form: compat.Form | None = None
+        self._energy_forms: dict[str, compat.Form] | None = None
         #: per-cell input fields written with the results (fibre directions, activation), by name
         self.cell_fields: dict[str, fem.Function] = {}
         for i, (region, law) in enumerate(self.materials):
@@ -146,9 +180,24 @@ class ElasticityProblem:
         energy = law.energy(self.F, R) if not law.incompressible else law.mixed_energy(self.F, self.p, R)
         if self.p is not None:
             self.internal += law.pressure_residual(self.F, self.p) * self.q * dx
-        self.strain_energy += energy * dx
+        self.material_energy += energy * dx
+        passive = self._without_activation(law, R)
+        if passive is None:
+            self.passive_energy += energy * dx
+        else:
+            self.passive_energy += passive * dx
+            active = (energy - passive) * dx
+            self.active_energy = active if self.active_energy is None else self.active_energy + active
         self.stress_terms.append((P, dx))
         self._energy_form = None
+        self._energy_forms = None
+
+    def _without_activation(self, law: Law, R: ufl.core.expr.Expr | None) -> ufl.core.expr.Expr | None:
+        """psi(F; alpha = 0) of a law whose activation field alpha is set, else None (nothing to remove)."""
+        if "alpha" not in law_fields(law) or getattr(law, "alpha", None) is None or not dataclasses.is_dataclass(law):
+            return None
+        passive = dataclasses.replace(law, alpha=self._no_activation)
+        return passive.energy(self.F, R) if not law.incompressible else passive.mixed_energy(self.F, self.p, R)
 
     def add_dirichlet(self, name: str, components: Sequence[int], values: Sequence[ValueSource],
                       load_dependent: Sequence[bool] | None = None,
@@ -206,7 +255,9 @@ class ElasticityProblem:
         """Dead traction t (per unit reference area) on boundary ``name``, scaled by lambda."""
         t = ufl.as_vector(traction) if not isinstance(traction, ufl.core.expr.Expr) else traction
         self.external += self.load_factor * ufl.inner(t, self.v) * self.boundary_measure(name)
+        self.load_potential += -self.load_factor * ufl.inner(t, self.u) * self.boundary_measure(name)
         self._forms = None
+        self._energy_forms = None
 
     def add_pressure(self, name: str, pressure: float) -> None:
         """Follower pressure p on boundary ``name`` (positive pushes inwards), scaled by lambda.
@@ -217,19 +268,24 @@ class ElasticityProblem:
         J = ufl.det(self.F)
         t0 = -pressure * J * ufl.inv(self.F).T * N
         self.external += self.load_factor * ufl.inner(t0, self.v) * self.boundary_measure(name)
+        self.follower_pressures.append(name)
         self._forms = None
+        self._energy_forms = None
 
-    def add_energy(self, energy: ufl.Form) -> None:
+    def add_energy(self, energy: ufl.Form, name: str = "added") -> None:
         """Add a potential Pi (a UFL form in the solution, e.g. a contact penalty): R += dPi/du [v].
 
-        Pi counts in total_energy(); each of its cell integrals psi dx whose psi depends on grad u
-        adds P = dpsi/dF to the stress outputs (stress_terms). Call before a solver is created (the
-        forms are compiled then).
+        Pi counts in total_energy() and in energies() as "<name>_energy" (energies of the same name are
+        summed: "contact", "sliding", "added" for a user's terms); each of its cell integrals psi dx whose
+        psi depends on grad u adds P = dpsi/dF to the stress outputs (stress_terms). Call before a solver
+        is created (the forms are compiled then).
         """
         self.internal += ufl.derivative(energy, self.solution, ufl.TestFunction(self.space))
         self.extra_energies.append(energy)
+        self.extra_energy_names.append(name)
         self.stress_terms += self._stress_terms_of(energy)
         self._energy_form = None
+        self._energy_forms = None
         self._forms = None
 
     def _stress_terms_of(self, energy: ufl.Form) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
@@ -272,7 +328,9 @@ class ElasticityProblem:
         """Body force b (per unit reference volume) on ``region``, scaled by lambda."""
         b = ufl.as_vector(force) if not isinstance(force, ufl.core.expr.Expr) else force
         self.external += self.load_factor * ufl.inner(b, self.v) * self.region_measure(region)
+        self.load_potential += -self.load_factor * ufl.inner(b, self.u) * self.region_measure(region)
         self._forms = None
+        self._energy_forms = None
 
     # --- forms ----------------------------------------------------------------------------------
 
@@ -333,8 +391,9 @@ class ElasticityProblem:
     # --- derived quantities ---------------------------------------------------------------------
 
     def total_energy(self) -> float:
-        """The stored energy at the current solution (all ranks): the materials' int psi dx plus every
-        energy added with add_energy (contact, sliding, a user's terms); external loads are not included.
+        """The stored energy at the current solution (all ranks): the materials' int psi(F; alpha) dx
+        (strain_energy + active_energy of energies()) plus every energy added with add_energy (contact,
+        sliding, a user's terms); the loads' potential is not included (see energies()).
 
         For an incompressible law (kappa = inf, mixed formulation) the material's term is the Lagrangian
         int (W + p g(F)) dx, whose p g part vanishes at convergence (the pressure equation makes
@@ -343,13 +402,36 @@ class ElasticityProblem:
         formulations.
         """
         if self._energy_form is None:
-            energy = self.strain_energy
+            energy = self.material_energy
             for extra in self.extra_energies:
                 energy = energy + extra
             self._energy_form = fem.form(energy)
         self.update_state()
         comm = self.domain.mesh.comm
         return comm.allreduce(fem.assemble_scalar(self._energy_form), op=MPI.SUM)
+
+    def energies(self) -> dict[str, float]:
+        """The energies of the module docstring at the current solution and load factor (all ranks):
+        strain_energy; active_energy (only with an activated material); <name>_energy per name of the
+        added energies; load_potential and total_potential (left out with a follower pressure, which has
+        no potential). The forms are compiled on the first call (and again only after a term is added).
+        """
+        if self._energy_forms is None:
+            forms = {"strain_energy": self.passive_energy}
+            if self.active_energy is not None:
+                forms["active_energy"] = self.active_energy
+            for name, extra in zip(self.extra_energy_names, self.extra_energies):
+                key = f"{name}_energy"
+                forms[key] = forms[key] + extra if key in forms else extra
+            if not self.follower_pressures:
+                forms["load_potential"] = self.load_potential
+            self._energy_forms = {k: fem.form(f) for k, f in forms.items()}
+        self.update_state()
+        comm = self.domain.mesh.comm
+        out = {k: float(comm.allreduce(fem.assemble_scalar(f), op=MPI.SUM)) for k, f in self._energy_forms.items()}
+        if not self.follower_pressures:
+            out["total_potential"] = sum(out.values())
+        return out
 
     def stress_groups(self) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
         """(P, dx): the stress terms summed per measure (a material and an added energy on the same cells

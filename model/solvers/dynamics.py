@@ -385,8 +385,8 @@ class Dynamics:
     def potential_energy(self) -> float:
         """Stored internal energy at the current solution (all ranks).
 
-        Displacement formulation: problem.total_energy() (int psi dx) plus energies added with
-        add_energy. Mixed: the potential whose stationarity the mixed equations express,
+        Displacement formulation: problem.total_energy() (int psi dx, the materials' material_energy) plus
+        energies added with add_energy. Mixed: the potential whose stationarity the mixed equations express,
         int W(F) + p g(F) - p^2 / (2 kappa) dx (forms.Law.mixed_energy; equal to int psi dx when p = kappa g;
         no p^2 term when kappa = inf), plus the added
         energies. External loads are not included (follower pressure has no potential).
@@ -400,7 +400,7 @@ class Dynamics:
                     R = next(polar).rotation if law.needs_rotation else None
                     energy += law.mixed_energy(problem.F, problem.p, R) * problem.region_measure(region)
             else:
-                energy = problem.strain_energy
+                energy = problem.material_energy
             for extra in problem.extra_energies:
                 energy += extra
             self._potential_form = fem.form(energy)
