@@ -42,7 +42,7 @@ def _check_names(name: str, names: dict[str, int]) -> dict[str, int]:
 
 @dataclass(frozen=True, eq=False)
 class MeshData:
-    """A linear tetrahedral mesh with named physical groups, held on one rank.
+    """A tetrahedral mesh with named physical groups, held on one rank: linear, or quadratic (``nodes``).
 
     Attributes
     ----------
@@ -59,7 +59,11 @@ class MeshData:
     region_names:
         Physical volume name -> tag.
     boundary_names:
-        Physical surface name -> tag.
+        Physical surface name -> tag.  A group without elements keeps its name (an empty group).
+    nodes:
+        None (linear cells), or ``(m, 10)`` int64 indices into ``points`` of quadratic tetrahedra in
+        gmsh's node order: the 4 vertices (``cells``), then the nodes on the edges 01, 12, 20, 30,
+        32, 31. Everything else (volumes, facets, ``cells``) is the straight-sided vertex mesh.
     """
 
     points: np.ndarray
@@ -69,6 +73,7 @@ class MeshData:
     facet_tags: np.ndarray
     region_names: dict[str, int] = field(default_factory=dict)
     boundary_names: dict[str, int] = field(default_factory=dict)
+    nodes: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         """Coerce arrays to their documented dtypes/shapes and check consistency."""
@@ -81,6 +86,10 @@ class MeshData:
             "region_names": _check_names("region_names", self.region_names),
             "boundary_names": _check_names("boundary_names", self.boundary_names),
         }
+        if self.nodes is not None:
+            coerced["nodes"] = _as_array("nodes", self.nodes, np.int64, 10)
+            if len(coerced["nodes"]) != len(coerced["cells"]) or np.any(coerced["nodes"][:, :4] != coerced["cells"]):
+                raise ValueError("MeshData: the first 4 nodes of each quadratic cell must be its cells' vertices")
         for key, value in coerced.items():
             object.__setattr__(self, key, value)
         npts = len(self.points)
@@ -88,8 +97,10 @@ class MeshData:
             raise ValueError(f"MeshData: {len(self.cells)} cells but {len(self.cell_tags)} cell tags")
         if len(self.facet_tags) != len(self.facets):
             raise ValueError(f"MeshData: {len(self.facets)} facets but {len(self.facet_tags)} facet tags")
-        for name in ("cells", "facets"):
+        for name in ("cells", "facets", "nodes"):
             array = getattr(self, name)
+            if array is None:
+                continue
             if array.size and (array.min() < 0 or array.max() >= npts):
                 raise ValueError(f"MeshData: {name} reference vertices outside [0, {npts})")
         if not np.all(np.isfinite(self.points)):
@@ -128,15 +139,34 @@ def _primary_connectivity(model: Any, etype: int, node_tags: Any, nvertices: int
     return np.asarray(node_tags, dtype=np.int64).reshape(-1, nnodes)[:, :nvertices]
 
 
-def _entity_connectivity(model: Any, dim: int, entity: int, nvertices: int) -> np.ndarray:
-    """Vertex node tags of all elements of one gmsh entity, shape ``(e, nvertices)``."""
+def _entity_connectivity(model: Any, dim: int, entity: int, nvertices: int, keep: int | None = None
+                         ) -> np.ndarray:
+    """Vertex node tags of all elements of one gmsh entity, shape ``(e, nvertices)``; with ``keep``, all
+    ``keep`` nodes of each element, shape ``(e, keep)`` (ValueError if an element has another count)."""
     types, _, node_tags = model.mesh.getElements(dim, entity)
-    blocks = [
-        _primary_connectivity(model, t, n, nvertices, dim) for t, n in zip(types, node_tags, strict=True)
-    ]
+    blocks = []
+    for t, n in zip(types, node_tags, strict=True):
+        if keep is None:
+            blocks.append(_primary_connectivity(model, t, n, nvertices, dim))
+        else:
+            nnodes = model.mesh.getElementProperties(int(t))[3]
+            if nnodes != keep:
+                raise ValueError(f"gmsh element type {t} has {nnodes} nodes, not {keep}")
+            blocks.append(np.asarray(n, dtype=np.int64).reshape(-1, keep))
     if not blocks:
-        return np.empty((0, nvertices), dtype=np.int64)
+        return np.empty((0, keep or nvertices), dtype=np.int64)
     return np.concatenate(blocks)
+
+
+def _tetrahedron_nodes(model: Any) -> set[int]:
+    """The node counts of the tetrahedra in the model (4, 10, 20, ...)."""
+    counts = set()
+    for _, entity in model.getEntities(3):
+        for t in model.mesh.getElements(3, entity)[0]:
+            name, _, _, nnodes, _, nprimary = model.mesh.getElementProperties(int(t))
+            if nprimary == 4:
+                counts.add(int(nnodes))
+    return counts
 
 
 def _physical_names(model: Any, dim: int) -> dict[str, int]:
@@ -150,12 +180,13 @@ def _physical_names(model: Any, dim: int) -> dict[str, int]:
     return names
 
 
-def _volume_elements(model: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Tetrahedra (gmsh node tags) of every 3D entity and the physical tag of each."""
+def _volume_elements(model: Any, keep: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Tetrahedra (gmsh node tags: the vertices, or all ``keep`` nodes) of every 3D entity and the
+    physical tag of each."""
     blocks: list[np.ndarray] = []
     tags: list[np.ndarray] = []
     for _, entity in model.getEntities(3):
-        conn = _entity_connectivity(model, 3, entity, 4)
+        conn = _entity_connectivity(model, 3, entity, 4, keep)
         groups = sorted(int(g) for g in model.getPhysicalGroupsForEntity(3, entity))
         if len(groups) > 1:
             logger.warning("volume %d is in physical groups %s; using tag %d", entity, groups, groups[0])
@@ -187,8 +218,10 @@ def from_gmsh_model(model: Any = None) -> MeshData:
         The ``gmsh.model`` API object (default: ``gmsh.model``); the *current*
         model is read.
 
-    All tetrahedra are kept (second- and higher-order tetrahedra are reduced to
-    their 4 vertices), with the tag of their volume's physical group (0 if none).
+    All tetrahedra are kept, with the tag of their volume's physical group (0 if none).
+    Second-order tetrahedra (10 nodes, every tetrahedron of the model) keep their edge nodes in
+    ``MeshData.nodes`` (curved cells); other higher orders are reduced to their 4 vertices, with a
+    warning.
     Triangles are taken from every 2D physical group.  Vertices are renumbered
     compactly, in increasing gmsh node tag order, to those used by tetrahedra.
 
@@ -206,7 +239,12 @@ def from_gmsh_model(model: Any = None) -> MeshData:
     order = np.argsort(node_tags, kind="stable")
     sorted_tags, sorted_coords = node_tags[order], coords[order]
 
-    tets, cell_tags = _volume_elements(model)
+    orders = _tetrahedron_nodes(model)
+    quadratic = orders == {10}
+    if orders - {4, 10} or orders == {4, 10}:
+        logger.warning("tetrahedra with %s nodes: reduced to their 4 vertices (straight-sided); only meshes "
+                       "made entirely of 10-node tetrahedra keep their curved geometry", sorted(orders))
+    tets, cell_tags = _volume_elements(model, 10 if quadratic else None)
     tris, facet_tags = _surface_elements(model)
 
     used = np.unique(tets)
@@ -219,7 +257,8 @@ def from_gmsh_model(model: Any = None) -> MeshData:
 
     return MeshData(
         points=sorted_coords[position],
-        cells=np.searchsorted(used, tets),
+        cells=np.searchsorted(used, tets[:, :4]),
+        nodes=np.searchsorted(used, tets) if quadratic else None,
         cell_tags=cell_tags,
         facets=np.searchsorted(used, tris),
         facet_tags=facet_tags,
@@ -259,7 +298,8 @@ def write_msh(mesh: MeshData, path: str | Path, binary: bool = True) -> None:
     discrete 2D entity, carrying the physical groups and names of ``mesh``.
     Cells are written grouped by tag, so the cell order may change on reading.
     The default binary format keeps coordinates bit-exact; text files store 16
-    significant digits.  Named groups without any element are not written.
+    significant digits.  Named groups without any element are not written; quadratic cells
+    (``mesh.nodes``) are written as their 4 vertices.
     """
     path = Path(path)
     with gmsh_session(

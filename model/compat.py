@@ -15,6 +15,7 @@ What differs between the two releases, and where it is handled here:
 - the PETSc vector of a Function: ``u.vector`` (0.5) or ``u.x.petsc_vec`` (0.9);
 - ``Expression.eval(cells)`` (0.5) or ``eval(mesh, cells)`` (0.9);
 - ``apply_lifting``/``set_bc`` scale the lifting with ``scale=`` (0.5) or ``alpha=`` (0.9);
+- gmsh's node order to dolfinx's: ``cpp.io.perm_gmsh`` (0.5) or ``io.gmshio.cell_perm_array`` (0.9);
 - point location: ``BoundingBoxTree``/``compute_collisions`` (0.5) or ``bb_tree``/``compute_collisions_points``;
 - facet geometry: ``cpp.mesh.entities_to_geometry(mesh._mesh, ...)`` (0.5) or ``mesh.entities_to_geometry`` (0.9);
 - class names: ``FormMetaClass``, ``DirichletBCMetaClass``, ``MeshTagsMetaClass`` (0.5) or ``Form``,
@@ -134,8 +135,28 @@ def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 
     return dmesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), np.asarray(points, dtype=np.float64), domain)
 
 
+def gmsh_node_order(cell: str, num_nodes: int) -> np.ndarray:
+    """p such that a cell's nodes in dolfinx's order are its gmsh nodes [p]; ``cell`` "tetrahedron" or
+    "triangle" (e.g. tetrahedron, 10: gmsh's edges 01 12 20 30 32 31 become dolfinx's 23 13 12 03 02 01)."""
+    if LEGACY:
+        from dolfinx import cpp
+
+        perm = cpp.io.perm_gmsh(getattr(cpp.mesh.CellType, cell), num_nodes)
+    else:
+        from dolfinx.io import gmshio
+
+        perm = gmshio.cell_perm_array(getattr(dmesh.CellType, cell), num_nodes)
+    return np.asarray(perm, dtype=np.int64)
+
+
+def geometry_degree(msh: dmesh.Mesh) -> int:
+    """The degree of the mesh's coordinate element (1 straight-sided, 2 curved tet10)."""
+    return int(msh.geometry.cmap.degree)
+
+
 def meshtags_from_input(msh: dmesh.Mesh, dim: int, entities: np.ndarray, values: np.ndarray) -> MeshTags:
-    """Mesh tags of entities given by their input node numbers on any rank (distributed here)."""
+    """Mesh tags of entities given by their input node numbers on any rank (distributed here): all the
+    entity's geometry nodes in dolfinx's order (4 or 10 for a tetrahedron, 3 or 6 for a triangle)."""
     entities = np.asarray(entities, dtype=np.int64)
     values = np.asarray(values, dtype=np.int32)
     msh.topology.create_connectivity(dim, 0)

@@ -74,14 +74,13 @@ def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
         if spec is None or spec.type != "laplace":
             continue
         for k in ("origin", "insertion"):
-            name = getattr(spec, k)
-            if name not in domain.boundaries:
-                raise ConfigError(f"material[{i}].fibres.{k}: no boundary named {name!r} in the mesh "
-                                  f"(boundaries: {', '.join(sorted(domain.boundaries)) or 'none'})")
+            error = domain.boundary_error(getattr(spec, k))
+            if error:
+                raise ConfigError(f"material[{i}].fibres.{k}: {error}")
         for j, r in enumerate(spec.regions):
-            if r != "all" and r not in domain.regions:
-                raise ConfigError(f"material[{i}].fibres.regions[{j}]: no region named {r!r} in the mesh "
-                                  f"(regions: {', '.join(['all', *sorted(domain.regions)])})")
+            error = domain.region_error(r)
+            if error:
+                raise ConfigError(f"material[{i}].fibres.regions[{j}]: {error}")
 
 
 def _fibre_fields(config: RunConfig, domain: Domain) -> fem.Function | None:
@@ -125,19 +124,13 @@ def _fibre_fields(config: RunConfig, domain: Domain) -> fem.Function | None:
 
 def _check_names(config: RunConfig, domain: Domain) -> None:
     regions = sorted(domain.regions)
-    boundaries = sorted(domain.boundaries)
-    for i, m in enumerate(config.materials):
-        if m.region != "all" and m.region not in domain.regions:
-            raise ConfigError(f"material[{i}].region: no region named {m.region!r} in the mesh "
-                              f"(regions: {', '.join(['all', *regions])})")
-    for i, b in enumerate(config.boundaries):
-        if b.on not in domain.boundaries:
-            raise ConfigError(f"boundary[{i}].on: no boundary named {b.on!r} in the mesh "
-                              f"(boundaries: {', '.join(boundaries) or 'none'})")
-    for i, f in enumerate(config.body_forces):
-        if f.region != "all" and f.region not in domain.regions:
-            raise ConfigError(f"body_force[{i}].region: no region named {f.region!r} in the mesh "
-                              f"(regions: {', '.join(['all', *regions])})")
+    for key, error in [*((f"material[{i}].region", domain.region_error(m.region))
+                         for i, m in enumerate(config.materials)),
+                       *((f"boundary[{i}].on", domain.boundary_error(b.on)) for i, b in enumerate(config.boundaries)),
+                       *((f"body_force[{i}].region", domain.region_error(f.region))
+                         for i, f in enumerate(config.body_forces))]:
+        if error:
+            raise ConfigError(f"{key}: {error}")
     comm = domain.mesh.comm
     tdim = domain.mesh.topology.dim
     num_owned = domain.mesh.topology.index_map(tdim).size_local
@@ -399,6 +392,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "cells": msh.topology.index_map(msh.topology.dim).size_global,
         "ranks": comm.size,
         "region_volumes": volumes.reference,
+        "mesh_quality": {k: setup.domain.quality[k] for k in ("min_radius_ratio", "worst_cell_centroid", "measure")
+                         if k in setup.domain.quality},
         "boundary_areas": volumes.areas,
         "probe_points": setup.probes.points_by_name(),
         "solver": {"method": config.solver.method, "tangent": config.solver.tangent},

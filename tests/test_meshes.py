@@ -277,7 +277,8 @@ def test_write_msh_round_trip(name: str, workdir: Path) -> None:
         )
 
 
-def test_second_order_reduced_to_vertices() -> None:
+def test_second_order_keeps_its_edge_nodes() -> None:
+    """10-node tetrahedra: the same vertex mesh as the linear one, plus the edge nodes (gmsh's order)."""
     meshes = []
     for order in (1, 2):
         with gmsh_session({**cylinder_options(0.3), "Mesh.ElementOrder": order}):
@@ -285,8 +286,17 @@ def test_second_order_reduced_to_vertices() -> None:
             gmsh.model.mesh.generate(3)
             meshes.append(from_gmsh_model(gmsh.model))
     linear, quadratic = meshes
-    for field in ("points", "cells", "cell_tags", "facets", "facet_tags"):
+    assert linear.nodes is None and quadratic.nodes.shape == (linear.num_cells, 10)
+    assert np.array_equal(quadratic.nodes[:, :4], quadratic.cells)
+    assert np.array_equal(quadratic.points[quadratic.cells], linear.points[linear.cells])
+    assert np.array_equal(quadratic.points[quadratic.facets], linear.points[linear.facets])
+    for field in ("cell_tags", "facet_tags"):
         assert np.array_equal(getattr(linear, field), getattr(quadratic, field)), field
+    # gmsh's edge order 01 12 20 30 32 31: each edge node within 2 % of the cell's size of its edge's middle
+    x = quadratic.points[quadratic.nodes]
+    for k, (a, b) in enumerate(((0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1))):
+        off = np.linalg.norm(x[:, 4 + k] - (x[:, a] + x[:, b]) / 2, axis=1)
+        assert np.all(off <= 0.02 * np.linalg.norm(x[:, a] - x[:, b], axis=1) + 0.02 * 0.3)
 
 
 def test_unnamed_groups_and_no_tets() -> None:

@@ -6,6 +6,7 @@ reader failure becomes a ConfigError naming the key (mesh.file, mesh.PARAMETER),
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -14,9 +15,13 @@ from mpi4py import MPI
 
 import meshes
 from meshes import MeshData
+from model import compat
 from model.config import MeshConfig
+from model.domain.checks import check_mesh
 from model.domain.distribute import Domain, build_domain
 from model.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 
 def load_mesh_data(cfg: MeshConfig) -> meshes.MeshData:
@@ -70,7 +75,15 @@ def make_domain(cfg: MeshConfig, comm: MPI.Comm) -> Domain:
         if failure is not None:
             raise failure
         raise RuntimeError(f"building the mesh failed on rank 0: {other}")
-    return build_domain(comm, data)
+    domain = build_domain(comm, data)
+    key = "mesh.file" if cfg.file is not None else "mesh.generator"
+    domain.quality = check_mesh(domain.mesh, key)
+    if compat.geometry_degree(domain.mesh) > 1 and comm.rank == 0:
+        log.warning("%s: 10-node tetrahedra: the geometry is curved (degree 2); approximated by the straight-"
+                    "sided vertex tetrahedra: the fold and quality checks, the VTU files and the PNG; integrals "
+                    "use discretization.quadrature_degree (3 or more integrates a curved cell's volume exactly)",
+                    key)
+    return domain
 
 
 def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
@@ -106,6 +119,14 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
         return np.concatenate([np.asarray(m.cell_data[candidates[0]][b]).reshape(-1) for b in blocks])
 
     cells = np.concatenate([m.cells[b].data[:, :4] for b in tet_blocks]).astype(np.int64)
+    nodes = None
+    if all(m.cells[b].type == "tetra10" for b in tet_blocks):
+        # meshio's tetra10 is VTK's order (edges 01 12 20 03 13 23); MeshData.nodes is gmsh's (... 30 32 31)
+        nodes = np.concatenate([m.cells[b].data for b in tet_blocks]).astype(np.int64)
+        nodes = nodes[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]]
+    elif any(m.cells[b].type == "tetra10" for b in tet_blocks):
+        log.warning("mesh.file: %s mixes 4- and 10-node tetrahedra: all are reduced to their vertices "
+                    "(straight-sided)", path.name)
     ctags = block_data(tet_blocks, cell_data, "cell_data")
     cell_tags = np.zeros(len(cells), dtype=np.int32) if ctags is None else ctags.astype(np.int32)
     region_names = dict(regions)
@@ -118,13 +139,21 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
                  if b < len(per_block) and per_block[b] is not None]
         return np.concatenate(parts) if parts else np.empty(0, dtype=np.int64)
 
+    all_blocks = list(range(len(m.cells)))
+    # a named set without any member is kept as an empty region and an empty boundary (its dimension
+    # is unknown), so that a lookup reports "empty", not "missing"
+    empty_sets = [name for name, per_block in cell_sets.items() if set_members(per_block, all_blocks).size == 0]
     next_tag = int(max([0, *np.unique(cell_tags).tolist(), *region_names.values()])) + 1
-    extra_cells, extra_tags = [], []
+    extra_cells, extra_tags, extra_nodes = [], [], []
     for set_name, per_block in cell_sets.items():
         members = set_members(per_block, tet_blocks)
+        if set_name in empty_sets and set_name not in region_names:
+            region_names[set_name] = next_tag
+            next_tag += 1
         if members.size == 0 or set_name in region_names:
             continue
         extra_cells.append(cells[members])
+        extra_nodes.append(nodes[members] if nodes is not None else None)
         extra_tags.append(np.full(len(members), next_tag, dtype=np.int32))
         region_names[set_name] = next_tag
         next_tag += 1
@@ -155,6 +184,10 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
             nf.append(tri_all[members])
             nt.append(np.full(len(members), next_tag, dtype=np.int32))
             next_tag += 1
+    for set_name in empty_sets:
+        if set_name not in boundary_names:
+            boundary_names[set_name] = next_tag
+            next_tag += 1
     if point_sets:
         exterior = exterior_triangles(cells)
         for set_name, ids in point_sets.items():
@@ -163,20 +196,20 @@ def read_meshio(path: Path, regions: dict[str, int], boundaries: dict[str, int],
             inside = np.zeros(len(m.points), dtype=bool)
             inside[np.asarray(ids, dtype=np.int64)] = True
             tris = exterior[inside[exterior].all(axis=1)]
-            if len(tris):
-                boundary_names[set_name] = next_tag
-                nf.append(tris)
-                nt.append(np.full(len(tris), next_tag, dtype=np.int32))
-                next_tag += 1
+            boundary_names[set_name] = next_tag  # no boundary triangle: an empty boundary
+            nf.append(tris)
+            nt.append(np.full(len(tris), next_tag, dtype=np.int32))
+            next_tag += 1
     facets, facet_tags = np.concatenate(nf), np.concatenate(nt)
     if extra_cells:
         # cells in named sets are duplicated with the set's tag; _combine merges them into codes
         cells = np.concatenate([cells, *extra_cells])
         cell_tags = np.concatenate([cell_tags, *extra_tags])
+        nodes = None if nodes is None else np.concatenate([nodes, *extra_nodes])
     return MeshData(points=np.asarray(m.points, dtype=np.float64)[:, :3] if m.points.shape[1] >= 3 else
                     np.pad(m.points, ((0, 0), (0, 3 - m.points.shape[1]))),
                     cells=cells, cell_tags=cell_tags, facets=facets, facet_tags=facet_tags,
-                    region_names=region_names, boundary_names=boundary_names)
+                    region_names=region_names, boundary_names=boundary_names, nodes=nodes)
 
 
 def _fix_abaqus_element_sets(path: Path, m) -> None:  # noqa: ANN001 - a meshio.Mesh

@@ -1,7 +1,9 @@
 """Results on disk: summary.json after every step, an XDMF time series, VTU files, and a PNG.
 
 Fields written each converged step:
-- ``u``: displacement, interpolated into P1 (the mesh's vertices) for output;
+- ``u``: displacement, interpolated into P1 (the mesh's vertices) for output; on a curved (degree-2)
+  mesh into P2 in the XDMF file (its nodes), the VTU files and the PNG showing the vertices only
+  (straight-sided cells);
 - ``J``, ``cauchy_stress`` (sigma = J^-1 P F^T), ``von_mises`` (sqrt(3/2 s:s)): cell
   averages (integrals over each cell with the run's quadrature rule divided by its
   volume, which works for quadrature-point state such as polar rotations too). J is
@@ -180,7 +182,8 @@ class ResultWriter:
             self.directory.mkdir(parents=True, exist_ok=True)
         self.comm.barrier()
         msh = problem.domain.mesh
-        self.u_out = fem.Function(compat.function_space(msh, "Lagrange", 1, (3,)), name="u")
+        # XDMF needs the output's degree to be the geometry's
+        self.u_out = fem.Function(compat.function_space(msh, "Lagrange", compat.geometry_degree(msh), (3,)), name="u")
         self.averages = CellAverages(problem)
         self.want_vtu, self.want_png = vtu, png
         self.xdmf = None
@@ -219,10 +222,10 @@ class ResultWriter:
         msh = self.problem.domain.mesh
         tdim = msh.topology.dim
         num_cells = msh.topology.index_map(tdim).size_local
-        geo_dofs = compat.geometry_dofs(msh)[:num_cells]
+        geo_dofs = compat.geometry_dofs(msh)[:num_cells, :4]  # the vertices (first in P1 and P2 alike)
         ids = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[geo_dofs]
         coords = msh.geometry.x[geo_dofs]
-        u_dofs = compat.cell_dofs(self.u_out.function_space.dofmap)[:num_cells]
+        u_dofs = compat.cell_dofs(self.u_out.function_space.dofmap)[:num_cells, :4]
         u_values = self.u_out.x.array.reshape(-1, 3)[u_dofs]
         cell_values = {}
         for name, f in fields.items():

@@ -104,9 +104,9 @@ def surface_measure(problem: ElasticityProblem, surface: str, quadrature_degree:
     (A/3) sum over the triangle's vertices: a lumped, node-by-node constraint; P1 only).
     """
     domain = problem.domain
-    if surface not in domain.boundaries:
-        raise ValueError(f"surface: no boundary named {surface!r} in the mesh "
-                         f"(boundaries: {', '.join(sorted(domain.boundaries)) or 'none'})")
+    error = domain.boundary_error(surface)
+    if error:
+        raise ValueError(f"surface: {error}")
     if quadrature_degree == "vertex":
         if problem.degree != 1:
             raise ValueError("quadrature_degree: the vertex rule is for P1 displacements only")
@@ -186,8 +186,9 @@ def attach(problem: ElasticityProblem, surface: str, motion: RigidMotion | Bone)
     load-dependent callables).
     """
     rigid = _motion_of(motion)
-    if surface not in problem.domain.boundaries:
-        raise ValueError(f"surface: no boundary named {surface!r} in the mesh")
+    error = problem.domain.boundary_error(surface)
+    if error:
+        raise ValueError(f"surface: {error}")
     cache: dict[float, Transform] = {}
 
     def transform(t: float) -> Transform:

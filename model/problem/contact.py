@@ -303,9 +303,9 @@ def build_contact(problem: ElasticityProblem, spec: ContactSpec, motion: RigidMo
     ``motion`` moves the obstacle (forms.motions; default: stationary). An unknown surface raises
     ConfigError naming ``key``.surface.
     """
-    if spec.surface not in problem.domain.boundaries:
-        raise ConfigError(f"{key}.surface: no boundary named {spec.surface!r} in the mesh "
-                          f"(boundaries: {', '.join(sorted(problem.domain.boundaries)) or 'none'})")
+    error = problem.domain.boundary_error(spec.surface)
+    if error:
+        raise ConfigError(f"{key}.surface: {error}")
     if spec.method == "vi":
         return VIContact(problem, spec.surface, spec.obstacle, motion)  # type: ignore[arg-type]
     assert spec.penalty is not None

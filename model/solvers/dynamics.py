@@ -140,9 +140,9 @@ class Dynamics:
         if not densities:
             raise ValueError("density: give a density for the body or for at least one region")
         for region, rho in densities.items():
-            if region != "all" and region not in problem.domain.regions:
-                raise ValueError(f"density: no region named {region!r} in the mesh "
-                                 f"(regions: {', '.join(['all', *sorted(problem.domain.regions)])})")
+            error = problem.domain.region_error(region)
+            if error:
+                raise ValueError(f"density: {error}")
             if not (math.isfinite(rho) and rho >= 0.0):
                 raise ValueError(f"density of region {region!r} must be finite and >= 0, got {rho}")
         self.problem = problem
