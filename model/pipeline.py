@@ -350,6 +350,9 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     if comm.rank == 0:
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
+    from model.solvers.scale import scale_check
+
+    scale = scale_check(problem, config)  # before any solve: loads, moduli and size against the units
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
     if dynamic and config.dynamics.initial == "equilibrium":
         _initial_equilibrium(setup, config)
@@ -371,6 +374,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "status": "running",
         "steps": [],
     }
+    summary["scale_check"] = scale.figures
+    summary.setdefault("warnings", []).extend(scale.warnings)
     if dynamic:
         spec = config.dynamics
         summary["dynamics"] = {"scheme": spec.scheme, "dt": spec.dt, "end_time": spec.end_time,
@@ -394,6 +399,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         }
         if setup.activation is not None:
             step["activation"] = setup.activation.values(t)
+        if not r.converged and getattr(r, "largest_residual", None):
+            step["largest_residual"] = r.largest_residual
         if r.converged:
             step["energy"] = problem.total_energy()
             if dynamics is not None:
