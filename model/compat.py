@@ -17,7 +17,8 @@ What differs between the two releases, and where it is handled here:
 - ``apply_lifting``/``set_bc`` scale the lifting with ``scale=`` (0.5) or ``alpha=`` (0.9);
 - gmsh's node order to dolfinx's: ``cpp.io.perm_gmsh`` (0.5) or ``io.gmshio.cell_perm_array`` (0.9);
 - point location: ``BoundingBoxTree``/``compute_collisions`` (0.5) or ``bb_tree``/``compute_collisions_points``;
-- facet geometry: ``cpp.mesh.entities_to_geometry(mesh._mesh, ...)`` (0.5) or ``mesh.entities_to_geometry`` (0.9);
+- the geometry nodes of entities (facets, cells): ``cpp.mesh.entities_to_geometry(mesh._mesh, ...)`` (0.5) or
+  ``mesh.entities_to_geometry`` (0.9);
 - class names: ``FormMetaClass``, ``DirichletBCMetaClass``, ``MeshTagsMetaClass`` (0.5) or ``Form``,
   ``DirichletBC``, ``MeshTags`` (0.9).
 """
@@ -184,6 +185,16 @@ def cell_dofs(dofmap: Any) -> np.ndarray:
 def geometry_dofs(msh: dmesh.Mesh) -> np.ndarray:
     """The geometry dofmap: (num_cells, nodes_per_cell) indices into ``msh.geometry.x``."""
     return cell_dofs(msh.geometry.dofmap)
+
+
+def entity_geometry(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """Indices into ``msh.geometry.x`` of the nodes of each entity of dimension ``dim``: (len(entities), nodes)."""
+    entities = np.asarray(entities, dtype=np.int32)
+    if LEGACY:
+        from dolfinx.cpp.mesh import entities_to_geometry
+
+        return entities_to_geometry(getattr(msh, "_mesh", msh), dim, entities, False)
+    return dmesh.entities_to_geometry(msh, dim, entities, False)
 
 
 def colliding_cells(msh: dmesh.Mesh, points: np.ndarray) -> Any:

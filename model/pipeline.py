@@ -377,6 +377,9 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
     remove_earlier_run(directory, comm)  # before any solve and before anything is written there
+    from model.solvers.scale import scale_check
+
+    scale = scale_check(problem, config)  # before any solve: loads, moduli and size against the units
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
     if dynamic and config.dynamics.initial == "equilibrium":
         _initial_equilibrium(setup, config)
@@ -405,6 +408,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     }
     if setup.probes.snapped:
         summary["snapped_probes"] = setup.probes.snapped
+    summary["scale_check"] = scale.figures
+    summary.setdefault("warnings", []).extend(scale.warnings)
     if dynamic:
         spec = config.dynamics
         summary["dynamics"] = {"scheme": spec.scheme, "dt": spec.dt, "end_time": spec.end_time,
@@ -429,6 +434,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         }
         if setup.activation is not None:
             step["activation"] = setup.activation.values(t)
+        if not r.converged and getattr(r, "largest_residual", None):
+            step["largest_residual"] = r.largest_residual
         if r.converged:
             step.update(problem.energies())
             if dynamics is not None:

@@ -9,8 +9,9 @@ ConfigError whose one-line message starts with the dotted key, in the project's 
     boundary[3].value[1]: must be a number, got '0'
     loading.stpes: unknown key (allowed: growth, max_cutbacks, steps)
 
-Units: any consistent system; the examples use SI (m, Pa, N, s, kg/m^3). A field's unit is given
-as its dimension's SI unit, e.g. "Pa (stress)".
+Units: any consistent system, named by [units] system: "SI" (m, Pa, N, s, kg/m^3; most examples) or
+"mm-MPa" (mm, MPa, N, s, tonne/mm^3). A field's unit is given as its dimension's SI unit, e.g.
+"Pa (stress)"; a key whose unit depends on another key says so (boundary value: by type).
 
 Validators raise ``fail(message, *key)`` for what a type cannot say (files that must exist, SPD
 shape targets, expressions, keys that depend on one another).
@@ -45,8 +46,9 @@ from pydantic_core import PydanticCustomError, PydanticUndefined
 
 from model.errors import ConfigError
 
-UNITS = ("Any consistent system of units; the examples use SI: m (length), Pa (stress), N (force), s (time), "
-         "kg/m^3 (mass density).")
+UNITS = ("Any consistent system of units, named by [units] system (nothing is converted): \"SI\", m (length), "
+         "Pa (stress), N (force), s (time), kg/m^3 (mass density), J (energy), as in the examples; or \"mm-MPa\", "
+         "mm, MPa = N/mm^2, N, s, tonne/mm^3, mJ (examples/isometric_mm.toml, examples/cook.toml).")
 
 
 # --- how errors are worded -------------------------------------------------------------------------------------------

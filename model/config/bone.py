@@ -114,7 +114,8 @@ class Transform(Section):
     about a fixed axis (slerp) and the translation is linear; constant beyond the ends."""
 
     times: Annotated[tuple[Number, ...], Field(min_length=1), Wording(too_short=_PER_TIME)] = key(
-        "the key times (load factor, or time in s), increasing")
+        "the key times (load factor, or time in s), increasing", "s (time) in a dynamic run, else dimensionless "
+        "(the load factor)")
     rotations: Annotated[tuple[Rotation, ...], Field(min_length=1), Wording(too_short=_PER_TIME)] = key(
         "per time: a rotation vector (axis times angle, in radians) or a 3x3 rotation matrix", "rad (angle)")
     translations: Annotated[tuple[Point, ...], Field(min_length=1), Wording(too_short=_PER_TIME)] = key(

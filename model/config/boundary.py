@@ -64,11 +64,14 @@ class BoundaryConfig(Variant):
     on: Name = key("name of the boundary (facet group) the condition acts on")
     type: str = key("the kind of condition")
     components: tuple[int, ...] = key("displacement components it prescribes (0: x, 1: y, 2: z)", default=())
-    value: tuple[float, ...] = key("prescribed values", default=())
-    expression: tuple[str, ...] = key("prescribed values as expressions of x and t", default=())
-    points: tuple[tuple[float, ...], ...] = key("restrict to the boundary's nodes at these points", default=())
+    value: tuple[float, ...] = key("prescribed values; their unit depends on type",
+                                   "by type: m (displacement), Pa (traction, pressure)", default=())
+    expression: tuple[str, ...] = key("prescribed values as expressions of x and t", "m (length)", default=())
+    points: tuple[tuple[float, ...], ...] = key("restrict to the boundary's nodes at these points", "m (length)",
+                                                default=())
     bone: Name | None = key("name of the [[bone]] the boundary moves with", default=None)
-    penalty: Positive | None = key("sliding stiffness k per unit reference area and unit gap", default=None)
+    penalty: Positive | None = key("sliding stiffness k per unit reference area and unit gap",
+                                   "Pa/m (stress per length)", default=None)
     quadrature_degree: QuadratureDegree | None = key("quadrature of the sliding energy", default=None)
 
     @classmethod
@@ -88,7 +91,7 @@ class DisplacementBoundary(BoundaryConfig):
                                  default=(0, 1, 2), json_schema_extra=_COMPONENTS_SCHEMA)
     value: Annotated[tuple[Number, ...], Field(min_length=1)] = key(
         "the prescribed displacements, one per entry of components (scaled by the load factor); or give "
-        "expression", "m (length)", default=(), silent=True)
+        "expression (value's unit depends on type: a length here)", "m (length)", default=(), silent=True)
     expression: Annotated[tuple[Text, ...], Field(min_length=1)] = key(
         "the prescribed displacements as expressions of x[0], x[1], x[2] and t (model.config.expressions), one "
         "per entry of components; without t they are scaled by the load factor", "m (length)", default=(),
@@ -127,7 +130,8 @@ class TractionBoundary(BoundaryConfig):
 
     keys = ("on", "type", "value")
     type: Literal["traction"] = key("a traction (Neumann)")
-    value: Point = key("traction per unit reference area [tx, ty, tz]", "Pa (stress)")
+    value: Point = key("traction per unit reference area [tx, ty, tz] (value's unit depends on type: a stress here)",
+                       "Pa (stress)")
 
 
 def _pressure(value: Any) -> tuple[float]:
@@ -143,7 +147,8 @@ class PressureBoundary(BoundaryConfig):
     value: Annotated[
         Annotated[Number, Tag("number")] | Annotated[tuple[Number], entries(1), Tag("array")],
         Discriminator(lambda v: "array" if isinstance(v, (list, tuple)) else "number"),
-    ] = key("the pressure p (a number, or an array of one number)", "Pa (stress)")
+    ] = key("the pressure p (a number, or an array of one number; value's unit depends on type: a stress "
+              "here)", "Pa (stress)")
 
     @field_validator("value", mode="after")
     @classmethod

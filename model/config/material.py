@@ -17,6 +17,7 @@ from pydantic import (
     Discriminator,
     Field,
     PlainValidator,
+    PrivateAttr,
     Tag,
     ValidationInfo,
     field_validator,
@@ -307,6 +308,17 @@ class MaterialConfig(Section):
     S_function: Annotated[Any, PlainValidator(_target_function, json_schema_input_type=Text)] = key(
         "shape targets S(x, t): \"FILE.py:FUNCTION\", relative to the configuration file, evaluated per cell at "
         "every step", default=None)
+    _given: dict[str, Any] = PrivateAttr(default_factory=dict)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _keep_given_parameters(cls, data: Any, handler: Any) -> MaterialConfig:
+        """Keep the law's parameters as written (E and nu, or mu and lmbda ...), for messages that name them."""
+        material = handler(data)
+        if isinstance(data, dict):
+            declared = cls.toml_keys()
+            material._given = {k: v for k, v in data.items() if k not in declared}
+        return material
 
     @model_validator(mode="before")
     @classmethod
@@ -353,6 +365,12 @@ class MaterialConfig(Section):
             fail(f"missing: {self.law.name} needs fibre directions, e.g. fibres = {{ type = \"laplace\", "
                  "origin = \"SURFACE\", insertion = \"SURFACE\" }", "fibres")
         return self
+
+    @property
+    def given_parameters(self) -> dict[str, Any]:
+        """The law's parameters as the table writes them (name -> value; defaults the table leaves out are not
+        here: the law has them)."""
+        return dict(self._given)
 
     @property
     def fields(self) -> dict[str, Any]:

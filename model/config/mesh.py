@@ -15,8 +15,15 @@ _FILE_KEYS = ("regions", "boundaries", "cell_data", "facet_data", "parameters")
 _GMSH = (".msh", ".geo")
 
 
+#: the unit of each generator parameter that has one (lengths; the others are counts, flags or, for cook, the
+#: benchmark's fixed 48 x 60 outline, whose thickness is in the same unit); a box's size: its three edge lengths
+GENERATOR_UNITS = {name: "m (length)" for name in (
+    "length", "radius", "muscle_radius", "tendon_radius", "tendon_length", "spacing", "size", "thickness",
+    "belly_radius", "height", "base_radius", "top_radius", "bend", "pole_size", "pole_radius")}
+
+
 def _generator_schema(schema: dict[str, Any]) -> None:
-    """The generator names, and per generator its parameters with their defaults (meshes' signatures)."""
+    """The generator names, and per generator its parameters with their defaults (meshes' signatures) and units."""
     from meshes import GENERATORS, generator_parameters
 
     schema["properties"]["generator"]["enum"] = sorted(GENERATORS)
@@ -25,6 +32,10 @@ def _generator_schema(schema: dict[str, Any]) -> None:
         properties: dict[str, Any] = {"generator": {"const": name}}
         for parameter, default in generator_parameters(name).items():
             properties[parameter] = {"description": f"parameter of the {name!r} generator (meshes.{name})"}
+            if parameter in GENERATOR_UNITS:
+                unit = GENERATOR_UNITS[parameter]
+                properties[parameter]["description"] += f" [{unit}]"
+                properties[parameter]["x-unit"] = unit
             if default is not None:
                 properties[parameter]["default"] = json.loads(json.dumps(default))
         variants.append({"properties": properties, "additionalProperties": False})
@@ -143,4 +154,4 @@ class MeshFile(MeshConfig):
 Mesh = kinds(GeneratedMesh, MeshFile, by=ByPresence(("generator", "file"),
                                                    "give exactly one of mesh.generator or mesh.file"))
 
-__all__ = ["GeneratedMesh", "Mesh", "MeshConfig", "MeshFile"]
+__all__ = ["GENERATOR_UNITS", "GeneratedMesh", "Mesh", "MeshConfig", "MeshFile"]

@@ -206,12 +206,13 @@ class _Renderer:
             self.generators(variants)
 
     def generators(self, variants: list[dict[str, Any]]) -> None:
-        self.lines += ["The generators and their parameters (default values; meshes.GENERATORS):", ""]
+        self.lines += ["The generators and their parameters (default values and units, lengths in the unit system's "
+                       "length unit; meshes.GENERATORS):", ""]
         for variant in variants:
             props = dict(variant["properties"])
             name = props.pop("generator")["const"]
-            params = ", ".join(f"`{k}` = `{json.dumps(p['default'])}`" if "default" in p else f"`{k}`"
-                               for k, p in props.items())
+            params = ", ".join((f"`{k}` = `{json.dumps(p['default'])}`" if "default" in p else f"`{k}`")
+                               + (f" {p['x-unit'].split()[0]}" if "x-unit" in p else "") for k, p in props.items())
             self.lines.append(f"- `{name}`: {params}")
         self.lines.append("")
 
@@ -224,7 +225,8 @@ class _Renderer:
             "before any mesh is read: an unknown key, a wrong type or a value out of range stops the run with a",
             "one-line error that starts with the key (`material[0].nu: 0.5 is out of range, must be in (-1, 0.5)`).",
             "",
-            f"Units: {UNITS[0].lower()}{UNITS[1:]} The unit column gives the dimension's SI unit.",
+            f"Units: {UNITS[0].lower()}{UNITS[1:]} The unit column gives the dimension's SI unit; with [units] "
+            "system = \"mm-MPa\" read mm for m, MPa for Pa, tonne/mm^3 for kg/m^3 and mJ for J (N and s stay).",
             "",
             f"Editors: `{SCHEMA_FILE}` is the JSON Schema of the file. With the Even Better TOML extension (taplo),",
             "`.taplo.toml` associates it with `examples/*.toml`; for a configuration elsewhere, make its first line",

@@ -4,8 +4,8 @@ Any consistent system works (the equations have no built-in constants); ``system
 configuration uses, so that results are labelled with their units (summary.json, the PNG's colour bar)
 and the scale check can tell a mesh in mm from one in m. The two systems in use:
 
-    SI:      m, Pa, N, s, kg/m^3, J            (every example but one)
-    mm-MPa:  mm, MPa = N/mm^2, N, s, tonne/mm^3, mJ = N mm
+    SI:      m, Pa, N, s, kg/m^3, J            (the examples but two)
+    mm-MPa:  mm, MPa = N/mm^2, N, s, tonne/mm^3, mJ = N mm   (examples/isometric_mm.toml, examples/cook.toml)
 """
 
 from __future__ import annotations

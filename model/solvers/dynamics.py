@@ -496,6 +496,6 @@ def step_time(solver: _Solver, dynamics: Dynamics, end_time: float, dt: float,
                 log.error("giving up: %s", reason)
             return Outcome(False, reason)
         if rank0:
-            log.warning("SNES failed at t = %.6g (%s); cutting the time step back to %.4g", target,
-                        result.reason_name, increment)
+            log.warning("SNES failed at t = %.6g (%s%s); cutting the time step back to %.4g", target,
+                        result.reason_name, f"; {result.where}" if getattr(result, "where", "") else "", increment)
     return Outcome(True)

@@ -54,6 +54,13 @@ def give_up_reason(what: str, target: float, current: float, reason_name: str, f
     return None
 
 
+def _rank0(problem: object) -> bool:
+    """Whether this process logs for the problem (rank 0 of its mesh's communicator; a problem without a mesh:
+    always)."""
+    domain = getattr(problem, "domain", None)
+    return domain is None or domain.mesh.comm.rank == 0
+
+
 @dataclass(frozen=True)
 class StepRecord:
     load_factor: float
@@ -94,12 +101,16 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
         cutbacks += 1
         increment = 0.5 * (target - current)  # half the step that failed (which the end may have shortened)
         reason = give_up_reason(what, target, current, f"{result.reason}, {result.reason_name}", cutbacks,
-                                increment, nominal,                                 max_cutbacks, step_key)
+                                increment, nominal, max_cutbacks, step_key)
+        rank0 = _rank0(problem)
         if reason is not None:
-            log.error("giving up: %s", reason)
+            if rank0:
+                log.error("giving up: %s", reason)
             return Outcome(False, reason)
-        log.warning("SNES failed at %s %.6g (%s); cutting the increment back to %.4g",
-                    what.removesuffix(" step"), target, result.reason_name, increment)
+        if rank0:
+            log.warning("SNES failed at %s %.6g (%s%s); cutting the increment back to %.4g",
+                        what.removesuffix(" step"), target, result.reason_name,
+                        f"; {result.where}" if result.where else "", increment)
     return Outcome(True)
 
 

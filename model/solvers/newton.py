@@ -20,11 +20,15 @@ from __future__ import annotations
 import ctypes
 import itertools
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
+import numpy as np
 from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from model import compat
@@ -103,6 +107,113 @@ class SolveResult:
     iterations: int
     linear_iterations: int
     residual_norm: float
+    #: a failed solve: where its last residual is largest, in words ("largest residual 3.1e2 at (...), in region
+    #: 'belly', on boundary 'cap'"), and as data (ResidualLocation.as_dict); empty / None otherwise
+    where: str = ""
+    largest_residual: dict[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class ResidualLocation:
+    """The displacement dof with the largest |residual| (Dirichlet dofs excluded): its value, node, component and
+    the named regions and boundaries the node lies in and on."""
+
+    value: float
+    point: tuple[float, float, float]
+    component: int
+    regions: tuple[str, ...]
+    boundaries: tuple[str, ...]
+
+    def as_dict(self) -> dict[str, Any]:
+        value = self.value if math.isfinite(self.value) else str(self.value)  # JSON has no inf or nan
+        return {"value": value, "point": list(self.point), "component": self.component,
+                "region": ", ".join(self.regions) or None, "boundary": ", ".join(self.boundaries) or None}
+
+    def __str__(self) -> str:
+        text = (f"largest residual {self.value:.3g} ({'xyz'[self.component]} component) at "
+                f"({', '.join(f'{c:.6g}' for c in self.point)})")
+        if self.regions:
+            text += f", in region {' and '.join(repr(r) for r in self.regions)}"
+        if self.boundaries:
+            text += f", on boundary {' and '.join(repr(b) for b in self.boundaries)}"
+        return text
+
+
+def _point_on_triangles(point: np.ndarray, triangles: np.ndarray, tol: float) -> np.ndarray:
+    """For (n, 3, 3) triangle vertex coordinates: is ``point`` on each (within ``tol``)?"""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    e1, e2, d = b - a, c - a, point - a
+    normal = np.cross(e1, e2)
+    area2 = np.linalg.norm(normal, axis=1)
+    safe = np.where(area2 > 0, area2, 1.0)
+    off_plane = np.abs(np.einsum("ij,ij->i", d, normal)) / safe
+    # barycentric coordinates of the projection
+    d11, d12, d22 = (np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2))
+    d1, d2 = np.einsum("ij,ij->i", d, e1), np.einsum("ij,ij->i", d, e2)
+    det = np.where(d11 * d22 - d12**2 > 0, d11 * d22 - d12**2, 1.0)
+    s, t = (d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det
+    slack = tol / np.sqrt(np.maximum(d11, d22))
+    return (off_plane <= tol) & (s >= -slack) & (t >= -slack) & (s + t <= 1 + slack) & (area2 > 0)
+
+
+def residual_location(problem: ElasticityProblem, residual: PETSc.Vec) -> ResidualLocation | None:
+    """Where |residual| is largest among the displacement dofs that are not Dirichlet dofs (the pressure
+    equations of the mixed formulation are volumes, not forces: left out), reduced over ranks.
+
+    Ties within 1e-8 relative go to the smallest (x, y, z, component), so that the answer does not depend on
+    the partition. The node's regions are those of the cells that contain it, its boundaries those of the
+    tagged facets it lies on (both gathered over ranks). None when there is no such dof.
+    """
+    msh = problem.domain.mesh
+    comm = msh.comm
+    space = problem.displacement_space
+    owned = problem.space.dofmap.index_map.size_local * problem.space.dofmap.index_map_bs
+    with residual.localForm() as local_form:
+        values = np.abs(np.array(local_form.array[:owned]))
+    constrained = np.zeros(owned, dtype=bool)
+    for entry in problem.dirichlet:
+        for dofs in entry.dofs:
+            constrained[dofs[dofs < owned]] = True
+    candidates = []  # (|R|, x, y, z, component) of each owned, free displacement dof
+    for component in range(3):
+        collapsed, parent = space.sub(component).collapse()
+        parent = np.asarray(parent)
+        mine = parent < owned
+        dofs = parent[mine]
+        x = collapsed.tabulate_dof_coordinates()[: len(parent)][mine]
+        free = ~constrained[dofs]
+        r = np.nan_to_num(values[dofs[free]], nan=np.inf)
+        candidates.append(np.column_stack([r, x[free], np.full(free.sum(), component)]))
+    table = np.vstack(candidates) if candidates else np.empty((0, 5))
+    largest = comm.allreduce(float(np.max(table[:, 0])) if len(table) else -1.0, op=MPI.MAX)
+    if largest < 0:
+        return None
+    near = table[table[:, 0] >= largest * (1 - 1e-8)] if math.isfinite(largest) else table[np.isinf(table[:, 0])]
+    best = tuple(min(map(tuple, near[:, 1:]))) if len(near) else (math.inf,) * 4
+    best = min(comm.allgather(best))
+    point = np.array(best[:3])
+    x = msh.geometry.x
+    tol = 1e-8 * comm.allreduce(float(np.linalg.norm(np.ptp(x, axis=0))) if len(x) else 0.0, op=MPI.MAX)
+    domain = problem.domain
+    regions: set[str] = set()
+    cells = compat.colliding_cells(msh, point).links(0)
+    tags = domain.cell_tags
+    values_of = dict(zip(tags.indices, tags.values))
+    for cell in cells:
+        code = values_of.get(int(cell))
+        regions |= {name for name, codes in domain.regions.items() if code in codes}
+    boundaries: set[str] = set()
+    fdim = msh.topology.dim - 1
+    facets = domain.facet_tags
+    if len(facets.indices):
+        nodes = compat.entity_geometry(msh, fdim, facets.indices)
+        on = _point_on_triangles(point, msh.geometry.x[nodes[:, :3]], tol)
+        for code in set(np.asarray(facets.values)[on].tolist()):
+            boundaries |= {name for name, codes in domain.boundaries.items() if code in codes}
+    regions = set().union(*comm.allgather(regions))
+    boundaries = set().union(*comm.allgather(boundaries))
+    return ResidualLocation(largest, (float(point[0]), float(point[1]), float(point[2])), int(best[3]),
+                            tuple(sorted(regions)), tuple(sorted(boundaries)))
 
 
 def rigid_body_modes(problem: ElasticityProblem) -> PETSc.NullSpace:
@@ -233,6 +344,7 @@ class NewtonSolver:
                 log.warning("PETSc did not use the option %s (solver.petsc_options)", key)
         self._copy_in(self.x)
         reason = self.snes.getConvergedReason()
+        where = self.residual_location() if reason <= 0 else None
         return SolveResult(
             converged=reason > 0,
             reason=int(reason),
@@ -240,7 +352,19 @@ class NewtonSolver:
             iterations=self.snes.getIterationNumber(),
             linear_iterations=self.snes.getLinearSolveIterations(),
             residual_norm=float(self.snes.getFunctionNorm()),
+            where=str(where) if where is not None else "",
+            largest_residual=where.as_dict() if where is not None else None,
         )
+
+    def residual_location(self) -> ResidualLocation | None:
+        """Where the residual SNES sees at the current iterate (Dirichlet rows: the conditions' misfit) is largest
+        among the free displacement dofs (residual_location)."""
+        b = self.b.duplicate()
+        try:
+            self._residual(self.snes, self.x, b)
+            return residual_location(self.problem, b)
+        finally:
+            b.destroy()
 
     def unconstrained_residual(self) -> PETSc.Vec:
         """R(u) = f_int - f_ext with no Dirichlet rows replaced.
