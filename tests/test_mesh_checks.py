@@ -271,3 +271,16 @@ def test_empty_group_is_empty_not_missing(shared_tmp: Path, name: str) -> None:
                                 "mesh.file but holds no facets)")
     raw["boundary"][-1]["on"] = "glue"
     assert build_error(raw).startswith(f"boundary[{k}].on: no boundary named 'glue' in the mesh")
+
+
+def test_guided_simulation_refuses_curved_cells(shared_tmp: Path) -> None:
+    """Guided simulation records vertex positions of 4-node cells: a 10-node mesh is refused before solving."""
+    from model.experiments.guided import run_stage1
+
+    path = on_rank0(shared_tmp, "sphere2_guided.msh", lambda p: write_sphere(p, 2))
+    raw = sphere_config(path)
+    raw["material"] = [{"region": "all", "law": "shape_target", "mu": 1.0e4, "kappa": 5.0e4, "S": np.eye(3).tolist()}]
+    raw["boundary"] = [{"on": "surface", "type": "displacement", "value": [0.0, 0.0, 0.0]}]
+    raw["discretization"] = {"degree": 1, "quadrature_degree": 1}
+    with pytest.raises(ConfigError, match=r"^mesh\.file: guided simulation records the vertices of 4-node"):
+        run_stage1(parse(raw, EXAMPLES))

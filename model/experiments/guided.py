@@ -276,6 +276,9 @@ def run_stage1(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.
     """Run the driven configuration (shape targets as configured, usually S = I), recording U per frame."""
     start = time.perf_counter()
     setup = build(config, comm)
+    if compat.geometry_degree(setup.domain.mesh) != 1:
+        raise ConfigError("mesh.file: guided simulation records the vertices of 4-node tetrahedra; this mesh has "
+                          "curved (10-node) cells: export it with linear tetrahedra")
     problem = setup.problem
     solver = NewtonSolver(problem, config.petsc_options)
     cells = CellDeformation(problem)
