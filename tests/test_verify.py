@@ -103,3 +103,30 @@ def test_envelope_stress_is_the_derivative_of_the_energy(material: str) -> None:
             fd = (plus - minus) / (2 * h)
             scale = np.abs(base["P"]).max(axis=(1, 2)) + 1.0
             assert np.all(np.abs(fd - base["P"][:, k, l]) < 1e-6 * scale), (k, l)
+
+
+NEO_HOOKEAN_FILE = '''
+import ufl
+
+PARAMETERS = {"mu": {"meaning": "shear modulus", "unit": "Pa (stress)", "bounds": (0, None), "exclusive": True}}
+VOLUMETRIC = "ln J"
+
+
+def psi(F, *, mu=1.0):
+    """(mu/2)(tr C - 3) - mu ln J; with kappa: + (kappa/2)(ln J)^2."""
+    return 0.5 * mu * (ufl.tr(F.T * F) - 3) - mu * ufl.ln(ufl.det(F))
+'''
+
+
+def test_a_law_of_your_own_is_checked_like_a_built_in_one(tmp_path) -> None:
+    """``verify`` takes "FILE.py:FUNCTION" (the configuration's law registry): a neo-Hookean written as a user law
+    gives the built-in neo_hookean's psi, P and A, to round-off."""
+    law = tmp_path / "my_neo_hookean.py"
+    law.write_text(NEO_HOOKEAN_FILE)
+    F, _ = deformation_samples(40, 2)
+    mine = reference(f"{law}:psi", {"mu": 3.0, "kappa": 7.0}, F)
+    built_in = reference("neo_hookean", {"mu": 3.0, "lmbda": 7.0}, F)
+    for row in compare(built_in, mine, rtol=1e-12):
+        assert row.ok, f"{row.quantity}: max rel error {row.max_rel_error:.2e}"
+    data = emit(f"{law}:psi", {"mu": 3.0, "kappa": 7.0}, samples=20, seed=1, out=tmp_path / "mine.npz")
+    assert str(data["material"]).endswith("my_neo_hookean.py:psi") and np.all(np.isfinite(data["A"]))

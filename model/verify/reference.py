@@ -39,15 +39,15 @@ QUANTITIES = ("psi", "P", "A")
 
 
 def _law_fields(material: str) -> tuple[str, ...]:
-    return forms.FIELDS.get(material, ())
+    """The fields a law takes: a built-in's name, or "FILE.py:FUNCTION" for a law of the user's own."""
+    return forms.resolve_law(material).fields
 
 
 class ReferenceEvaluator:
     """psi, P, A of a law at many F (and per-sample fields), through UFL and dolfinx."""
 
     def __init__(self, material: str, params: dict[str, float], num_samples: int) -> None:
-        if material not in forms.LAWS:
-            raise forms.ParameterError(f"unknown law {material!r} (choose from {', '.join(sorted(forms.LAWS))})")
+        entry = forms.resolve_law(material)  # ParameterError naming the law when unknown
         self.material = material
         self.num_samples = num_samples
         n = num_samples
@@ -70,7 +70,7 @@ class ReferenceEvaluator:
         if "alpha" in _law_fields(material):
             self.fields["alpha"] = fem.Function(compat.function_space(self.mesh, "DG", 0), name="alpha")
             extra["alpha"] = self.fields["alpha"]
-        self.law: Law = forms.make_law(material, **extra, **params)
+        self.law: Law = entry.make(**extra, **params)
         Fv = ufl.variable(self.F)
         R = None
         self.polar = None
