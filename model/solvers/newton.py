@@ -162,7 +162,8 @@ def residual_location(problem: ElasticityProblem, residual: PETSc.Vec) -> Residu
 
     Values within 1e-3 relative of the largest count as ties and go to the smallest (x, y, z, component), so
     that the answer does not depend on the partition (a failed iterate's symmetric peaks differ in the last
-    digits from one partition to another; the location is a hint, its value the largest). The node's regions are those of the cells that contain it, its boundaries those of the
+    digits from one partition to another; the location is a hint, its value the largest).
+    The node's regions are those of the cells that contain it, its boundaries those of the
     tagged facets it lies on (both gathered over ranks). None when there is no such dof.
     """
     msh = problem.domain.mesh
