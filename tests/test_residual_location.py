@@ -75,5 +75,5 @@ def test_two_ranks_report_the_same_location(tmp_path: Path) -> None:
     for s, p in zip(serial, parallel):
         a, b = s["largest_residual"], p["largest_residual"]
         assert a["value"] == pytest.approx(b["value"], rel=1e-8)
-        assert (a["point"], a["component"], a["region"], a["boundary"]) == \
-            (b["point"], b["component"], b["region"], b["boundary"])
+        assert a["point"] == pytest.approx(b["point"], abs=1e-12)  # dof coordinates: round-off per partition
+        assert (a["component"], a["region"], a["boundary"]) == (b["component"], b["region"], b["boundary"])
