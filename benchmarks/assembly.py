@@ -45,7 +45,6 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import ufl  # noqa: E402
-from dolfinx import fem  # noqa: E402
 from dolfinx.fem import petsc as fem_petsc  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
@@ -127,10 +126,9 @@ def assembly_case(comm: MPI.Comm, law_name: str, degree: int, quadrature_degree:
     problem.solution.x.scatter_forward()
     residual_ufl = problem.residual_form
     jacobian_ufl = ufl.derivative(residual_ufl, problem.solution, ufl.TrialFunction(problem.space))
-    jit = {"cache_dir": cache_dir}
     compiled: dict[str, compat.Form] = {}
-    compile_residual = slowest(comm, lambda: compiled.update(r=fem.form(residual_ufl, jit_params=jit)))
-    compile_jacobian = slowest(comm, lambda: compiled.update(j=fem.form(jacobian_ufl, jit_params=jit)))
+    compile_residual = slowest(comm, lambda: compiled.update(r=compat.compile_form(residual_ufl, cache_dir)))
+    compile_jacobian = slowest(comm, lambda: compiled.update(j=compat.compile_form(jacobian_ufl, cache_dir)))
     residual, jacobian = compiled["r"], compiled["j"]
     b = fem_petsc.create_vector(residual)
     A = fem_petsc.create_matrix(jacobian)

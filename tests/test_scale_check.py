@@ -70,8 +70,9 @@ def test_mesh_in_mm_with_moduli_in_pa_warns() -> None:
 def test_e_in_mpa_with_sigma_max_in_pa_warns() -> None:
     result = check(e_in_mpa_sigma_max_in_pa())
     assert result.method == "linear solve"
-    # the first increment: activation 1/5, fibre stress 3e5 / 5 against E = 9: strains of order 1e3 to 1e4
-    assert result.first_increment_strain > 1e3
+    # the first increment: activation 1/5, fibre stress 3e5 / 5 against E = 9: strains of order 1e2 to 1e4 (1.6e4
+    # on Debian 12's gmsh mesh, 5.7e2 on Debian 13's; the bound that warns is 0.5)
+    assert result.first_increment_strain > 1e2
     assert len(result.warnings) == 1, result.warnings
     warning = result.warnings[0]
     assert warning.startswith("scale check: the first load increment strains the body by ")
