@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import dolfinx
+import dolfinx.jit
 import numpy as np
 import ufl
 from dolfinx import fem, geometry
@@ -43,6 +44,15 @@ from petsc4py import PETSc
 DOLFINX_VERSION: tuple[int, ...] = tuple(int(part) for part in dolfinx.__version__.split(".")[:3] if part.isdigit())
 #: the API of dolfinx 0.5/0.6 (ufl elements, AdjacencyList dofmaps, Function.vector)
 LEGACY = DOLFINX_VERSION < (0, 7)
+
+
+#: Seconds a rank waits for another rank's JIT compilation of the same form before it gives up. dolfinx's
+#: default, 10 s, is shorter than the C compiler takes for the fibre laws' large expression kernels on a
+#: loaded 2-core machine (a TimeoutError on the waiting rank); a user's dolfinx_jit_options.json still wins.
+JIT_TIMEOUT = 600
+_JIT_DEFAULTS = getattr(dolfinx.jit, "DOLFINX_DEFAULT_JIT_OPTIONS", None) or \
+    dolfinx.jit.DOLFINX_DEFAULT_JIT_PARAMETERS  # 0.9 or 0.5
+_JIT_DEFAULTS["timeout"] = (max(JIT_TIMEOUT, _JIT_DEFAULTS["timeout"][0]), _JIT_DEFAULTS["timeout"][1])
 
 if LEGACY:
     Form = fem.FormMetaClass
