@@ -226,6 +226,18 @@ def exterior_facet_vertices(msh: dmesh.Mesh) -> np.ndarray:
     return msh.geometry.x[nodes][:, :, :3].copy()
 
 
+def compile_form(form: Any, cache_dir: str | None = None) -> Any:
+    """fem.form(form), compiled into the JIT cache ``cache_dir`` (None: dolfinx's usual one).
+
+    The keyword is ``jit_params`` before dolfinx 0.7 and ``jit_options`` after.
+    """
+    if cache_dir is None:
+        return fem.form(form)
+    if LEGACY:
+        return fem.form(form, jit_params={"cache_dir": cache_dir})
+    return fem.form(form, jit_options={"cache_dir": cache_dir})
+
+
 # --- evaluation, PETSc --------------------------------------------------------------------------------
 
 def evaluate(expression: fem.Expression, msh: dmesh.Mesh, cells: np.ndarray) -> np.ndarray:
