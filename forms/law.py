@@ -109,7 +109,8 @@ class Law(ABC):
         return F
 
     def reduced_stress(self, F: Expr, R: Expr | None = None) -> Expr:
-        """dW/dF, derived by UFL. Laws with a polar rotation override it (envelope theorem)."""
+        """dW/dF, derived by UFL. Laws with a polar rotation override it (envelope theorem), and the fibre
+        laws (chain rule through scalar invariants, each factor derived by UFL: forms.muscle)."""
         Fv = ufl.variable(F)
         return ufl.diff(self.reduced_energy(Fv, R), Fv)
 

@@ -394,6 +394,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "dofs": imap.size_global * problem.space.dofmap.index_map_bs,
         "cells": msh.topology.index_map(msh.topology.dim).size_global,
         "ranks": comm.size,
+        # the degrees used: the materials' energy, and the loads / surfaces / inertia (quadrature_degrees)
+        "quadrature_degree": {"energy": problem.energy_quadrature_degree, "loads": problem.quadrature_degree},
         "region_volumes": volumes.reference,
         "mesh_quality": {k: setup.domain.quality[k] for k in ("min_radius_ratio", "worst_cell_centroid", "measure")
                          if k in setup.domain.quality},

@@ -16,6 +16,12 @@ gets the pressure equation g(F) q dx instead: p is the Lagrange multiplier of g(
 The Jacobian is always ufl.derivative of the residual. Dirichlet values are lambda times their
 reference value.
 
+Quadrature (quadrature_degrees): quadrature_degree = "auto" (the default) integrates the materials'
+terms (energy, stress, tangent, and the polar rotations' quadrature points) with degree 1 (one point)
+for P1 displacements, where F and the per-cell fields are constant in each cell so one point is exact,
+and with 2 degree otherwise; loads, surfaces and inertia use 2 degree (dx, ds; the materials use
+dx_energy). An integer quadrature_degree is used for every term.
+
 Energies added with add_energy (contact and sliding penalties, a user's own terms) enter the residual
 as dPi/du [v], the stored energy (total_energy, energies) and, for their cell integrals psi dx, the
 stress outputs as P = dpsi/dF (stress_terms), so that a problem built from add_energy alone reports the
@@ -64,6 +70,27 @@ log = logging.getLogger(__name__)
 ValueSource = float | Callable[[np.ndarray], np.ndarray]
 
 
+#: the default quadrature_degree: chosen from the displacement degree (quadrature_degrees)
+AUTO = "auto"
+
+
+def quadrature_degrees(degree: int, quadrature_degree: int | str = AUTO) -> tuple[int, int]:
+    """(q, q_energy): the quadrature degree of the loads, surface terms and inertia, and of the materials.
+
+    "auto": q = 2 degree, q_energy = 1 for degree 1 and 2 degree otherwise. For degree 1, F = I + grad u
+    is constant per cell and the laws' fields (a0, alpha, S) are per cell (DG0), so every material's
+    integrands psi(F), P(F) : grad v and A(F) grad du : grad v are constant per cell: one point
+    (degree 1) integrates them exactly, where degree 2 (four points) evaluates the same value four
+    times. The loads keep 2 degree (a traction or body force given by an expression of x varies in the
+    cell), and so does the inertia rho u . v (quadratic). An integer is used for both, as given.
+    """
+    if quadrature_degree == AUTO:
+        return 2 * degree, (1 if degree == 1 else 2 * degree)
+    if isinstance(quadrature_degree, bool) or not isinstance(quadrature_degree, int) or quadrature_degree < 1:
+        raise ValueError(f"quadrature_degree must be an integer >= 1 or 'auto', got {quadrature_degree!r}")
+    return quadrature_degree, quadrature_degree
+
+
 @dataclass
 class DirichletBoundary:
     """Dirichlet data on one named boundary: per constrained component its dofs and values at lambda = 1."""
@@ -82,14 +109,16 @@ class ElasticityProblem:
     """Forms and boundary data of one run; quantities that change (load factor, Dirichlet values) never recompile."""
 
     def __init__(self, domain: Domain, materials: Sequence[tuple[str, Law]], degree: int = 1,
-                 quadrature_degree: int = 2, formulation: str = "displacement") -> None:
+                 quadrature_degree: int | str = AUTO, formulation: str = "displacement") -> None:
         if formulation not in ("displacement", "mixed"):
             raise ValueError(f"formulation must be 'displacement' or 'mixed', got {formulation!r}")
         if formulation == "mixed" and degree < 2:
             raise ValueError("the mixed (Taylor-Hood) formulation needs degree >= 2")
         self.domain = domain
         self.degree = degree
-        self.quadrature_degree = quadrature_degree
+        #: quadrature degree of the loads, surface terms, inertia and added energies; the materials'
+        #: energy uses energy_quadrature_degree (quadrature_degrees)
+        self.quadrature_degree, self.energy_quadrature_degree = quadrature_degrees(degree, quadrature_degree)
         self.formulation = formulation
         self.materials = list(materials)
         msh = domain.mesh
@@ -115,9 +144,14 @@ class ElasticityProblem:
         #: s(t), the factor of scaled loads and Dirichlet values at time t (quasi-static: s = t; a dynamic
         #: run ramps them over its ramp time)
         self.load_scale: Callable[[float], float] = lambda t: t
-        metadata = {"quadrature_degree": quadrature_degree}
+        metadata = {"quadrature_degree": self.quadrature_degree}
         self.dx = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags, metadata=metadata)
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags, metadata=metadata)
+        #: dx of the materials' energy, stress and tangent (and of their quadrature-point state)
+        self.dx_energy = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags,
+                                     metadata={"quadrature_degree": self.energy_quadrature_degree})
+        log.info("quadrature degree %d (materials' energy %d), displacement degree %d", self.quadrature_degree,
+                 self.energy_quadrature_degree, degree)
         self.F = deformation_gradient(self.u)
         self.polar_fields: list[PolarField] = []
         self._state_stamp: np.ndarray | None = None
@@ -126,9 +160,9 @@ class ElasticityProblem:
         zero = fem.Constant(msh, PETSc.ScalarType(0.0))
         #: the materials' energy int psi(F; alpha) dx, active term included (a zero form when there is no
         #: material: always a ufl.Form)
-        self.material_energy: ufl.Form = zero * self.dx
+        self.material_energy: ufl.Form = zero * self.dx_energy
         #: the materials' passive energy int psi(F; alpha = 0) dx
-        self.passive_energy: ufl.Form = zero * self.dx
+        self.passive_energy: ufl.Form = zero * self.dx_energy
         #: sum_r int psi_r(F; alpha) - psi_r(F; 0) dx_r over the activated materials, or None (none is)
         self.active_energy: ufl.Form | None = None
         #: the zero activation the passive energy is built with
@@ -163,15 +197,19 @@ class ElasticityProblem:
         """dx restricted to a named region ("all" is the whole mesh)."""
         return self.dx if region == "all" else self.dx(self.domain.regions[region])
 
+    def energy_measure(self, region: str) -> ufl.Measure:
+        """dx_energy (the materials' quadrature, energy_quadrature_degree) restricted to a named region."""
+        return self.dx_energy if region == "all" else self.dx_energy(self.domain.regions[region])
+
     def boundary_measure(self, name: str) -> ufl.Measure:
         """ds restricted to a named boundary."""
         return self.ds(self.domain.boundaries[name])
 
     def _add_material(self, region: str, law: Law) -> None:
-        dx = self.region_measure(region)
+        dx = self.energy_measure(region)
         R = None
         if law.needs_rotation:
-            polar = PolarField(self.domain.mesh, law.rotation_argument(self.F), self.quadrature_degree,
+            polar = PolarField(self.domain.mesh, law.rotation_argument(self.F), self.energy_quadrature_degree,
                                self.domain.region_cells(region))
             self.polar_fields.append(polar)
             R = polar.rotation

@@ -398,7 +398,7 @@ class Dynamics:
                 polar = iter(problem.polar_fields)
                 for region, law in problem.materials:
                     R = next(polar).rotation if law.needs_rotation else None
-                    energy += law.mixed_energy(problem.F, problem.p, R) * problem.region_measure(region)
+                    energy += law.mixed_energy(problem.F, problem.p, R) * problem.energy_measure(region)
             else:
                 energy = problem.material_energy
             for extra in problem.extra_energies:

@@ -54,7 +54,7 @@ class ProjectedTangent:
                              f"not {problem.formulation!r}")
         self.problem = problem
         msh = problem.domain.mesh
-        q = problem.quadrature_degree
+        q = problem.energy_quadrature_degree  # the materials' quadrature (and the polar fields')
         self.space = compat.quadrature_space(msh, q, (9, 9))
         self.A = fem.Function(self.space, name="projected_tangent")
         points = compat.quadrature_points(msh, q)
@@ -85,7 +85,7 @@ class ProjectedTangent:
             owner[cells] = m
             index = (dofmap[cells][..., None] * 81 + np.arange(81)).reshape(len(cells), -1)
             self.blocks.append((fem.Expression(_as_9x9(tangent), points), cells, index))
-            jacobian += ufl.inner(self.A * flat_grad_du, flat_grad_v) * problem.region_measure(region)
+            jacobian += ufl.inner(self.A * flat_grad_du, flat_grad_v) * problem.energy_measure(region)
         if problem.external != 0:
             jacobian -= ufl.derivative(problem.external, problem.solution, du)
         self.jacobian_ufl = jacobian
