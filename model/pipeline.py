@@ -50,6 +50,7 @@ from model.fields.targets import TargetField
 from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.measurements import Volumes, reactions
+from model.solvers import linear
 from model.solvers.loadstepping import continuation, step_loads
 from model.solvers.newton import NewtonSolver
 
@@ -307,7 +308,13 @@ class RunResult:
 
 def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None) -> Any:
     """The solver [solver] asks for: NewtonSolver (exact or projected tangent), ProjectiveDynamicsSolver,
-    or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface)."""
+    or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface).
+
+    Newton's linear solver is the preset ``solver.linear`` resolves to for this problem's size and formulation
+    (model.solvers.linear.resolve; ConfigError before any solve for a preset or fieldsplit options the problem
+    cannot take), its options under ``petsc_options`` (the user's win). The choice is the solver's
+    ``linear_choice``.
+    """
     solver = config.solver
     if solver.method == "projective_dynamics":
         from model.solvers.projective_dynamics import ProjectiveDynamicsSolver
@@ -315,11 +322,43 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
         options = {**config.petsc_options, "pd_max_iterations": solver.pd_max_iterations,
                    "pd_rtol": solver.pd_rtol, "pd_atol": solver.pd_atol}
         return ProjectiveDynamicsSolver(problem, options)
+    vi = any(getattr(c, "method", None) == "vi" for c in config.contacts)
+    choice = linear.resolve(problem, solver.linear, config.petsc_options, vi=vi)
     if contacts:
         from model.solvers.contact import make_contact_solver
 
-        return make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent)
-    return NewtonSolver(problem, config.petsc_options, tangent=solver.tangent)
+        made = make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent,
+                                   defaults=choice.options)
+    else:
+        made = NewtonSolver(problem, config.petsc_options, tangent=solver.tangent, defaults=choice.options)
+    made.linear_choice = choice
+    log.info("linear solver: %s (%s asked, %d dofs)", choice.preset, choice.requested, choice.dofs)
+    return made
+
+
+def newton_of(solver: Any) -> NewtonSolver | None:
+    """The NewtonSolver inside a solver (itself, or the one a contact solver wraps), or None (Projective Dynamics)."""
+    while solver is not None and not isinstance(solver, NewtonSolver):
+        solver = getattr(solver, "newton", getattr(solver, "inner", None))
+    return solver
+
+
+def _solver_summary(config: RunConfig, solver: Any) -> dict[str, Any]:
+    """summary.json's "solver": method, tangent and, for Newton, the linear preset used (``linear``), the one
+    asked for, the dof count it was chosen by and every PETSc option in effect (defaults, preset, user's)."""
+    out: dict[str, Any] = {"method": config.solver.method, "tangent": config.solver.tangent}
+    newton = newton_of(solver)
+    choice = getattr(solver, "linear_choice", None)
+    if newton is not None and choice is not None:
+        out.update(choice.as_dict(newton.options))
+    return out
+
+
+def _linear_per_newton(solver: Any) -> dict[str, list[int]]:
+    """{"linear_iterations_per_newton": [...]} of the last solve (a SNES monitor's counts), or {}."""
+    newton = newton_of(solver)
+    monitor = getattr(newton, "linear_monitor", None)
+    return {"linear_iterations_per_newton": list(monitor.per_newton)} if monitor is not None else {}
 
 
 def _dynamics(setup: Setup, config: RunConfig) -> Any:
@@ -401,7 +440,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
                          if k in setup.domain.quality},
         "boundary_areas": volumes.areas,
         "probe_points": setup.probes.points_by_name(),
-        "solver": {"method": config.solver.method, "tangent": config.solver.tangent},
+        "solver": _solver_summary(config, solver),
         "versions": versions,
         "units": units_summary(config),
         "wall_time_s": 0.0,
@@ -429,6 +468,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
             **extra,
             "newton_iterations": r.iterations,
             "linear_iterations": r.linear_iterations,
+            **_linear_per_newton(solver),
             "converged": r.converged,
             "snes_reason": r.reason,
             "snes_reason_name": r.reason_name,

@@ -10,6 +10,8 @@ from model.config.base import By, Flag, Integer, NonNegative, Number, Text, Vari
 
 SOLVER_METHODS = ("newton", "projective_dynamics")
 TANGENTS = ("exact", "projected")
+#: Newton's linear-solver presets (model.solvers.linear)
+LINEAR_PRESETS = ("direct", "iterative", "auto")
 
 
 def _scalar_kind(value: Any) -> str | None:
@@ -54,6 +56,12 @@ class SolverConfig(Variant):
     tangent: Literal["exact", "projected"] = key(
         "Newton's tangent: the exact second derivative of the energy, or its per-quadrature-point projection onto "
         "positive semi-definite tensors (displacement formulation only)", default="exact")
+    linear: Literal["direct", "iterative", "auto"] = key(
+        "Newton's linear solver: \"direct\" (MUMPS LU), \"iterative\" (displacement formulation: CG + GAMG with the "
+        "rigid-body near null space; mixed: FGMRES with a Schur-complement fieldsplit, AMG on the displacement block "
+        "and the (1/mu + 1/kappa)-weighted pressure mass matrix for the Schur complement) or \"auto\" (direct below "
+        "50000 unknowns, iterative from there); petsc_options override any of its options",
+        default="auto")
     petsc_options: PetscOptions = key(
         "PETSc options without their leading '-', e.g. { snes_rtol = 1e-8, ksp_type = \"preonly\" }",
         default_factory=dict)
@@ -69,7 +77,7 @@ class SolverConfig(Variant):
 class NewtonSettings(SolverConfig):
     """[solver] with method = "newton" (the default): PETSc SNES with line search."""
 
-    keys = ("method", "tangent", "petsc_options")
+    keys = ("method", "tangent", "linear", "petsc_options")
     method: Literal["newton"] = key("the nonlinear solver: PETSc SNES Newton", default="newton")
 
 
@@ -83,5 +91,5 @@ class ProjectiveDynamicsSettings(SolverConfig):
 
 Solver = kinds(NewtonSettings, ProjectiveDynamicsSettings, by=By("method", "newton"))
 
-__all__ = ["SOLVER_METHODS", "TANGENTS", "NewtonSettings", "PetscOptions", "ProjectiveDynamicsSettings", "Solver",
-           "SolverConfig"]
+__all__ = ["LINEAR_PRESETS", "SOLVER_METHODS", "TANGENTS", "NewtonSettings", "PetscOptions",
+           "ProjectiveDynamicsSettings", "Solver", "SolverConfig"]

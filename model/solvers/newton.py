@@ -26,13 +26,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from dolfinx import fem, la
+from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from model import compat
 from model.problem import ElasticityProblem
+from model.solvers import linear
 
 log = logging.getLogger(__name__)
 
@@ -219,27 +220,11 @@ def residual_location(problem: ElasticityProblem, residual: PETSc.Vec) -> Residu
 
 
 def rigid_body_modes(problem: ElasticityProblem) -> PETSc.NullSpace:
-    """The six rigid-body modes of a displacement space, orthonormalised (a near null space for GAMG)."""
+    """The six rigid-body modes of a displacement space, orthonormalised (a near null space for GAMG; the mixed
+    formulation's u block gets them through model.solvers.linear.MixedFields)."""
     if problem.formulation != "displacement":
         raise ValueError("rigid-body modes: only for the displacement formulation")
-    space = problem.space
-    imap = space.dofmap.index_map
-    bs = space.dofmap.index_map_bs
-    owned = imap.size_local
-    x = space.tabulate_dof_coordinates()[:owned]
-    vectors = [la.create_petsc_vector(imap, bs) for _ in range(6)]
-    for i in range(3):  # translations
-        with vectors[i].localForm() as local:
-            local.array[i:owned * bs:bs] = 1.0
-    for k, (a, b) in enumerate(((0, 1), (1, 2), (2, 0))):  # rotations about the axes: u_a = -x_b, u_b = x_a
-        with vectors[3 + k].localForm() as local:
-            local.array[a:owned * bs:bs] = -x[:, b]
-            local.array[b:owned * bs:bs] = x[:, a]
-    for i, v in enumerate(vectors):  # modified Gram-Schmidt
-        for w in vectors[:i]:
-            v.axpy(-w.dot(v), w)
-        v.normalize()
-    return PETSc.NullSpace().create(vectors=vectors, comm=space.mesh.comm)
+    return PETSc.NullSpace().create(vectors=linear.vector_rigid_body_modes(problem.space), comm=problem.space.mesh.comm)
 
 
 class NewtonSolver:
@@ -251,7 +236,8 @@ class NewtonSolver:
 
     def __init__(self, problem: ElasticityProblem, options: dict[str, str | int | float | bool] | None = None,
                  prefix: str | None = None, tangent: str = "exact",
-                 bounds: Callable[[PETSc.Vec, PETSc.Vec], None] | None = None) -> None:
+                 bounds: Callable[[PETSc.Vec, PETSc.Vec], None] | None = None,
+                 defaults: dict[str, str | int | float | bool] | None = None) -> None:
         if tangent not in TANGENTS:
             raise ValueError(f"solver.tangent: {tangent!r} is not one of {', '.join(TANGENTS)}")
         self.problem = problem
@@ -277,13 +263,19 @@ class NewtonSolver:
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
         self.prefix = prefix or f"elasticity{next(_counter)}_"
-        self.options = {**DEFAULT_OPTIONS, **(options or {})}
+        linear.check_options(problem, options or {})  # fieldsplit options this problem cannot take
+        # DEFAULT_OPTIONS < the linear preset's ``defaults`` (model.solvers.linear) < the user's ``options``
+        self.options = {**DEFAULT_OPTIONS, **(defaults or {}), **(options or {})}
         self.user_options = list(options or {})
         db = PETSc.Options()
         for key, value in self.options.items():
             db[f"{self.prefix}{key}"] = value
         self.snes.setOptionsPrefix(self.prefix)
         self.snes.setFromOptions()
+        # fieldsplit (mixed formulation): the u and p index sets, the u block's near null space, Schur's Sp
+        self.fields = linear.configure_fields(self.snes, problem, self.options)
+        #: linear iterations of each Newton iteration of the last solve
+        self.linear_monitor = linear.LinearMonitor(self.snes)
         # the options stay in the database until destroy(): PETSc reads some of them only when the
         # preconditioner is set up in the first solve (MUMPS's mat_mumps_*, multigrid levels, ...)
         unknown = [k for k in unused_options(self.prefix, self.user_options) if not read_later(k)]
@@ -394,3 +386,5 @@ class NewtonSolver:
                 bound.destroy()
         if self.near_null_space is not None:
             self.near_null_space.destroy()
+        if self.fields is not None:
+            self.fields.destroy()

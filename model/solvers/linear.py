@@ -1,0 +1,352 @@
+"""Newton's linear solver: the presets of ``[solver] linear`` and the block preconditioner of Taylor-Hood.
+
+Presets (flat PETSc options, under the solver's prefix; ``petsc_options`` override any of them):
+
+    direct      preonly + LU (MUMPS)
+    iterative   displacement formulation: CG + GAMG, the six rigid-body modes as near null space
+                mixed (Taylor-Hood P_k/P_(k-1)): FGMRES, right preconditioned by a Schur-complement fieldsplit
+    auto        direct below AUTO_DOFS unknowns (global), iterative from there
+
+The Newton matrix of the mixed formulation, ordered [u, p],
+
+    J = [ A   B^T ]     A = d2W/du2 (+ p d2g),  B = dg/du [q],  C = -int (1/kappa) p q dx  (0 when kappa = inf)
+        [ B   C   ]
+
+is factorised as J = [I 0; B A^-1 I] [A 0; 0 S] [I A^-1 B^T; 0 I], S = C - B A^-1 B^T (negative definite).
+The preconditioner keeps the lower factor (``pc_fieldsplit_schur_fact_type lower``) with
+
+    A^-1  ~ one V-cycle of algebraic multigrid on the displacement block (GAMG, near null space: the rigid-body
+            modes of the u block; or hypre BoomerAMG with block size 3)
+    S^-1  ~ Sp^-1,  Sp = - int (1/mu + 1/kappa) p q dx   (per material region; 1/kappa = 0 when kappa = inf),
+
+the pressure mass matrix weighted by the shear and bulk compliances, spectrally equivalent to S
+uniformly in the mesh size and in kappa -> inf (nu -> 1/2), so the number of Krylov iterations stays
+bounded. Sp depends only on the materials (not on the state): it is assembled once per run. mu is the
+small-strain shear modulus of the law (``shear_modulus``); kappa its bulk penalty (``Law.bulk_penalty``).
+
+The fields are given to PETSc as index sets (PCFieldSplitSetIS) named "u" and "p": each rank's owned dofs of
+the mixed space's sub-spaces, in the order of the collapsed sub-space (the u set node by node, x y z, block
+size 3), in global numbering. So the u sub-matrix is laid out like the collapsed vector space, and the
+rigid-body modes built on that space are its near null space (composed with the u index set as
+"nearnullspace", which PCFieldSplit attaches to the sub-matrix at every set-up).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import ufl
+from dolfinx import fem, la
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from model.errors import ConfigError
+from model.problem import ElasticityProblem
+
+log = logging.getLogger(__name__)
+
+Options = dict[str, str | int | float | bool]
+
+#: the presets of [solver] linear
+PRESETS = ("direct", "iterative", "auto")
+#: "auto" chooses the iterative preset from this many unknowns (global): below it MUMPS is faster on one
+#: or two ranks (docs/solvers.md, benchmarks/linear_presets.py)
+AUTO_DOFS = 50_000
+#: the fields of the mixed formulation, by their PETSc names
+FIELDS = ("u", "p")
+
+DIRECT: Options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+#: displacement formulation: CG + GAMG (the matrix carries the rigid-body modes as near null space)
+ITERATIVE_DISPLACEMENT: Options = {
+    "ksp_type": "cg",
+    "ksp_rtol": 1e-8,
+    "ksp_max_it": 1000,
+    "pc_type": "gamg",
+    "pc_gamg_type": "agg",
+    "mg_levels_ksp_type": "chebyshev",
+    "mg_levels_pc_type": "jacobi",
+}
+#: mixed formulation: FGMRES + Schur fieldsplit (lower), GAMG on u, SSOR on the weighted pressure
+#: mass matrix
+ITERATIVE_MIXED: Options = {
+    "ksp_type": "fgmres",
+    "ksp_rtol": 1e-8,
+    "ksp_max_it": 1000,
+    "ksp_gmres_restart": 200,
+    "pc_type": "fieldsplit",
+    "pc_fieldsplit_type": "schur",
+    "pc_fieldsplit_schur_fact_type": "lower",
+    "pc_fieldsplit_schur_precondition": "user",
+    "fieldsplit_u_ksp_type": "preonly",
+    "fieldsplit_u_pc_type": "gamg",
+    "fieldsplit_u_pc_gamg_type": "agg",
+    "fieldsplit_u_mg_levels_ksp_type": "chebyshev",
+    "fieldsplit_u_mg_levels_pc_type": "jacobi",
+    "fieldsplit_p_ksp_type": "preonly",
+    "fieldsplit_p_pc_type": "sor",
+}
+
+_FIELDSPLIT_NAME = re.compile(r"^fieldsplit_(.+?)_(ksp|pc|mat|mg|sub|snes)_")
+#: PCFieldSplit's own field definitions by component or block size (the solver gives u and p as index sets)
+_FIELD_DEFINITIONS = re.compile(r"^pc_fieldsplit_(\d+_fields|block_size|detect_saddle_point)$")
+
+
+@dataclass
+class LinearChoice:
+    """The linear solver a run uses: the preset asked for, the one it resolved to, and the options it adds."""
+
+    requested: str
+    preset: str
+    dofs: int
+    options: Options = field(default_factory=dict)
+
+    def as_dict(self, effective: Options) -> dict[str, Any]:
+        """For summary.json: ``linear`` (the resolved preset), what was asked for, and the PETSc options in effect."""
+        return {"linear": self.preset, "linear_requested": self.requested, "dofs": self.dofs,
+                "auto_dofs": AUTO_DOFS, "petsc_options": {k: effective[k] for k in sorted(effective)}}
+
+
+def shear_modulus(law: Any) -> float:
+    """The small-strain shear modulus mu of a law (the coefficient of the Schur preconditioner's 1/mu).
+
+    Lame-parametrised laws (stvk, neo_hookean, corotated): mu. Mooney-Rivlin, and muscle/tendon with
+    isotropic = "mooney_rivlin": 2 (c1 + c2) (c (Ibar - 3) = 2 c dev(eps):dev(eps) + O(eps^3)); muscle/tendon
+    with isotropic = "stvk": mu; shape targets: mu (mu ||F - R S||^2 = mu eps:eps + O(eps^3) at S = I). Otherwise
+    ValueError: the law has no shear stiffness this preconditioner knows of.
+    """
+    if getattr(law, "isotropic", None) == "mooney_rivlin" or (hasattr(law, "c1") and not hasattr(law, "isotropic")):
+        value = 2.0 * (float(law.c1) + float(law.c2))
+    elif hasattr(law, "mu"):
+        value = float(law.mu)
+    else:
+        raise ValueError(f"law {getattr(law, 'name', law)!r} has no shear modulus (mu, or c1 and c2)")
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"law {getattr(law, 'name', law)!r}: shear modulus {value!r} (needs a finite value > 0)")
+    return value
+
+
+def check_options(problem: ElasticityProblem, options: Options, key: str = "solver.petsc_options") -> None:
+    """ConfigError for fieldsplit options PETSc could not apply here: fields other than u and p, or a fieldsplit
+    preconditioner on the displacement formulation (one field)."""
+    for name in options:
+        match = _FIELDSPLIT_NAME.match(name)
+        if match and match.group(1) not in FIELDS:
+            raise ConfigError(f"{key}.{name}: the fields of the mixed formulation are named u and p "
+                              f"(fieldsplit_u_..., fieldsplit_p_...), not {match.group(1)!r}")
+        if _FIELD_DEFINITIONS.match(name):
+            raise ConfigError(f"{key}.{name}: the solver defines the fields itself (index sets u and p of the "
+                              "mixed formulation); leave out PETSc's field definitions")
+    if options.get("pc_type") == "fieldsplit" and problem.formulation != "mixed":
+        raise ConfigError(f"{key}.pc_type: fieldsplit needs the mixed formulation (fields u and p); the displacement "
+                          "formulation has one field (use discretization.formulation = \"mixed\" or pc_type gamg)")
+
+
+def resolve(problem: ElasticityProblem, requested: str, user: Options | None = None, *,
+            vi: bool = False) -> LinearChoice:
+    """The preset [solver] linear = ``requested`` resolves to for this problem, with its PETSc options.
+
+    "auto" is "direct" below AUTO_DOFS global unknowns and "iterative" from there, except with VI contact (its
+    reduced systems have no fixed fields, and CG on them is untested): always "direct". ConfigError naming the key for
+    combinations that cannot work: the mixed iterative preset with VI contact, a law without a shear
+    modulus, or fieldsplit options naming other fields.
+    """
+    user = dict(user or {})
+    if requested not in PRESETS:
+        raise ConfigError(f"solver.linear: {requested!r} is not one of {', '.join(PRESETS)}")
+    imap = problem.space.dofmap.index_map
+    dofs = int(imap.size_global * problem.space.dofmap.index_map_bs)
+    check_options(problem, user)
+    preset = requested
+    if requested == "auto":
+        preset = "iterative" if dofs >= AUTO_DOFS and not vi else "direct"
+    if preset == "direct":
+        return LinearChoice(requested, preset, dofs, dict(DIRECT))
+    if problem.formulation == "displacement":
+        return LinearChoice(requested, preset, dofs, _without_others(ITERATIVE_DISPLACEMENT, user))
+    if vi:
+        raise ConfigError("solver.linear: \"iterative\" with the mixed formulation cannot be used with contact "
+                          "method \"vi\" (the VI solver's reduced systems have no fixed u and p fields); use "
+                          "linear = \"direct\"")
+    for i, (region, law) in enumerate(problem.materials):
+        try:
+            shear_modulus(law)
+        except ValueError as err:
+            raise ConfigError(f"solver.linear: \"iterative\" with the mixed formulation needs the shear modulus of "
+                              f"every material; material[{i}] (region {region!r}): {err}") from None
+    return LinearChoice(requested, preset, dofs, _without_others(ITERATIVE_MIXED, user))
+
+
+def _without_others(preset: Options, user: Options) -> Options:
+    """The preset's options less those of a preconditioner or Krylov method the user replaced (so that the
+    options recorded as in effect are the ones PETSc reads)."""
+    options = dict(preset)
+    if user.get("pc_type", options.get("pc_type")) != options.get("pc_type"):
+        options = {k: v for k, v in options.items()
+                   if not k.startswith(("pc_fieldsplit_", "fieldsplit_", "pc_gamg_", "mg_levels_"))}
+    if str(user.get("ksp_type", "gmres")) not in ("gmres", "fgmres"):
+        options.pop("ksp_gmres_restart", None)
+    return options
+
+
+def vector_rigid_body_modes(space: fem.FunctionSpace) -> list[PETSc.Vec]:
+    """The six rigid-body modes of a blocked vector space (block size 3), owned entries, orthonormalised.
+
+    Translations e_i, rotations x -> e_k x x about the axes (u_a = -x_b, u_b = x_a), modified Gram-Schmidt.
+    """
+    imap = space.dofmap.index_map
+    bs = space.dofmap.index_map_bs
+    if bs != 3:
+        raise ValueError(f"rigid-body modes: a vector space of block size 3, got {bs}")
+    owned = imap.size_local
+    x = space.tabulate_dof_coordinates()[:owned]
+    vectors = [la.create_petsc_vector(imap, bs) for _ in range(6)]
+    for i in range(3):  # translations
+        with vectors[i].localForm() as local:
+            local.array[i:owned * bs:bs] = 1.0
+    for k, (a, b) in enumerate(((0, 1), (1, 2), (2, 0))):
+        with vectors[3 + k].localForm() as local:
+            local.array[a:owned * bs:bs] = -x[:, b]
+            local.array[b:owned * bs:bs] = x[:, a]
+    for i, v in enumerate(vectors):  # modified Gram-Schmidt
+        for w in vectors[:i]:
+            v.axpy(-w.dot(v), w)
+        v.normalize()
+    return vectors
+
+
+class MixedFields:
+    """The u and p index sets of a mixed (Taylor-Hood) problem, the u block's near null space and the Schur
+    preconditioner's weighted pressure mass matrix Sp = - sum_r int (1/mu_r + 1/kappa_r) p q dx_r."""
+
+    def __init__(self, problem: ElasticityProblem) -> None:
+        if problem.formulation != "mixed":
+            raise ValueError("MixedFields: only for the mixed formulation")
+        space = problem.space
+        comm = space.mesh.comm
+        imap = space.dofmap.index_map
+        bs = space.dofmap.index_map_bs
+        owned = imap.size_local * bs
+        first = imap.local_range[0] * bs
+        self.spaces: dict[str, fem.FunctionSpace] = {}
+        self.index_sets: dict[str, PETSc.IS] = {}
+        #: per field: the collapsed space's owned dofs in the order of the field's rows (ascending global index in
+        #: the mixed space, as PCFieldSplit needs)
+        self.order: dict[str, np.ndarray] = {}
+        for i, name in enumerate(FIELDS):
+            collapsed, parent = space.sub(i).collapse()
+            parent = np.asarray(parent, dtype=np.int64)
+            sub_bs = collapsed.dofmap.index_map_bs
+            n = collapsed.dofmap.index_map.size_local * sub_bs
+            mine = parent[:n]
+            if np.any(mine >= owned) or np.any(parent[n:] < owned):
+                raise RuntimeError(f"field {name}: the collapsed space's owned dofs are not the mixed space's")
+            order = np.argsort(mine, kind="stable")
+            index_set = PETSc.IS().createGeneral((first + mine[order]).astype(PETSc.IntType), comm=comm)
+            # block size 3 (hypre's nodal coarsening) when the sorted u dofs come node by node, x y z
+            blocks = order.reshape(-1, sub_bs)
+            nodal = bool(np.all(blocks // sub_bs == blocks[:, :1] // sub_bs)
+                         and np.all(blocks % sub_bs == np.arange(sub_bs)))
+            if comm.allreduce(nodal, op=MPI.LAND) and sub_bs > 1:
+                index_set.setBlockSize(sub_bs)
+            self.spaces[name] = collapsed
+            self.index_sets[name] = index_set
+            self.order[name] = order
+        self.modes = self._rigid_body_modes()
+        self.near_null_space = PETSc.NullSpace().create(vectors=self.modes, comm=comm)
+        self.index_sets["u"].compose("nearnullspace", self.near_null_space)
+        self.compliance = [(region, 1.0 / shear_modulus(law) + (0.0 if math.isinf(law.bulk_penalty)
+                                                                    else 1.0 / law.bulk_penalty))
+                           for region, law in problem.materials]
+        self.schur_matrix = self._weighted_mass(problem)
+
+    def _rigid_body_modes(self) -> list[PETSc.Vec]:
+        """The rigid-body modes of the collapsed u space (vector_rigid_body_modes), laid out like the u field's
+        rows (its index set's order)."""
+        collapsed = vector_rigid_body_modes(self.spaces["u"])
+        order = self.order["u"]
+        index_set = self.index_sets["u"]
+        out = []
+        for mode in collapsed:
+            vector = PETSc.Vec().createMPI((index_set.getLocalSize(), index_set.getSize()), comm=index_set.comm)
+            vector.setBlockSize(index_set.getBlockSize())
+            vector.array[:] = mode.array_r[: len(order)][order]
+            out.append(vector)
+            mode.destroy()
+        return out
+
+    def _weighted_mass(self, problem: ElasticityProblem) -> PETSc.Mat:
+        """Sp = - sum_r int (1/mu_r + 1/kappa_r) p q dx_r, assembled on the collapsed pressure space and taken in
+        the p field's row order."""
+        pressure = self.spaces["p"]
+        msh = pressure.mesh
+        p, q = ufl.TrialFunction(pressure), ufl.TestFunction(pressure)
+        degree = 2 * (problem.degree - 1)
+        dx = ufl.Measure("dx", domain=msh, subdomain_data=problem.domain.cell_tags,
+                         metadata={"quadrature_degree": degree})
+        form = None
+        for region, weight in self.compliance:
+            measure = dx if region == "all" else dx(problem.domain.regions[region])
+            term = -fem.Constant(msh, PETSc.ScalarType(weight)) * p * q * measure
+            form = term if form is None else form + term
+        matrix = fem_petsc.assemble_matrix(fem.form(form))
+        matrix.assemble()
+        start = pressure.dofmap.index_map.local_range[0]
+        rows = PETSc.IS().createGeneral((start + self.order["p"]).astype(PETSc.IntType), comm=msh.comm)
+        reordered = matrix.createSubMatrix(rows, rows)
+        rows.destroy()
+        matrix.destroy()
+        return reordered
+
+    def configure(self, pc: PETSc.PC, options: Options) -> None:
+        """Give a fieldsplit PC its u and p fields and, for ``pc_fieldsplit_schur_precondition user``, Sp."""
+        pc.setFieldSplitIS(*((name, self.index_sets[name]) for name in FIELDS))
+        if str(options.get("pc_fieldsplit_type", "")).lower() == "schur" and \
+                str(options.get("pc_fieldsplit_schur_precondition", "")).lower() == "user":
+            # petsc4py 3.18 names the enum PC.SchurPreType; later releases also PC.FieldSplitSchurPreType
+            kinds = getattr(PETSc.PC, "FieldSplitSchurPreType", None) or PETSc.PC.SchurPreType
+            pc.setFieldSplitSchurPreType(kinds.USER, self.schur_matrix)
+
+    def destroy(self) -> None:
+        self.schur_matrix.destroy()
+        self.near_null_space.destroy()
+        for vector in self.modes:
+            vector.destroy()
+        for index_set in self.index_sets.values():
+            index_set.destroy()
+
+
+def configure_fields(snes: PETSc.SNES, problem: ElasticityProblem, options: Options) -> MixedFields | None:
+    """After SNESSetFromOptions: when the preconditioner is fieldsplit (mixed formulation), give it the u and
+    p fields and the Schur preconditioner; None otherwise."""
+    pc = snes.getKSP().getPC()
+    if pc.getType() != PETSc.PC.Type.FIELDSPLIT:
+        return None
+    check_options(problem, {"pc_type": "fieldsplit"})
+    fields = MixedFields(problem)
+    fields.configure(pc, options)
+    return fields
+
+
+class LinearMonitor:
+    """The linear iterations of every Newton iteration of the last solve (a SNES monitor: at Newton iteration
+    k > 0, SNESGetLinearSolveIterations minus its value at k - 1)."""
+
+    def __init__(self, snes: PETSc.SNES) -> None:
+        self.per_newton: list[int] = []
+        self._total = 0
+        snes.setMonitor(self)
+
+    def __call__(self, snes: PETSc.SNES, iteration: int, norm: float) -> None:
+        if iteration == 0:
+            self.per_newton = []
+            self._total = 0
+            return
+        total = snes.getLinearSolveIterations()
+        self.per_newton.append(int(total - self._total))
+        self._total = total

@@ -1,0 +1,176 @@
+"""[solver] linear: the direct (MUMPS) and iterative presets give the same answers; the Taylor-Hood block
+preconditioner's iteration counts do not grow with the mesh or as nu -> 1/2; settings that cannot work are
+ConfigErrors naming the key, before any solve. Collective: runs serially and under mpirun -n 2."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import example, run_raw
+
+from model.errors import ConfigError
+
+#: tight linear tolerance, so that the two presets' Newton solutions agree far below 1e-8
+TIGHT = {"ksp_rtol": 1e-12, "ksp_atol": 1e-50}
+
+
+def quiet(raw: dict[str, Any], linear: str, options: dict[str, Any] | None = None, steps: int = 2) -> dict[str, Any]:
+    raw["output"] = {"xdmf": False, "vtu": False, "png": False}
+    raw["loading"] = {"steps": steps}
+    raw["solver"] = {"linear": linear, "petsc_options": dict(options or {})}
+    return raw
+
+
+def relative_difference(a: dict[str, list[float]], b: dict[str, list[float]]) -> float:
+    """max over names of |a - b| (vectors) / the largest |b| (the scale: a support that carries no load in some
+    direction has a reaction of rounding size there)."""
+    assert a.keys() == b.keys()
+    scale = max(float(np.linalg.norm(b[k])) for k in b)
+    assert scale > 0
+    return max(float(np.linalg.norm(np.subtract(a[k], b[k]))) for k in a) / scale
+
+
+def both_presets(raw: dict[str, Any], out: Path, steps: int = 2) -> tuple[dict[str, Any], dict[str, Any]]:
+    direct = run_raw(quiet(copy.deepcopy(raw), "direct", steps=steps), out / "direct")
+    iterative = run_raw(quiet(copy.deepcopy(raw), "iterative", TIGHT, steps=steps), out / "iterative")
+    return direct, iterative
+
+
+def assert_same_answers(direct: dict[str, Any], iterative: dict[str, Any]) -> None:
+    assert direct["status"] == iterative["status"] == "completed"
+    last_d, last_i = direct["steps"][-1], iterative["steps"][-1]
+    assert last_d["load_factor"] == last_i["load_factor"] == 1.0
+    assert relative_difference(last_i["probes"], last_d["probes"]) < 1e-8
+    assert relative_difference(last_i["reactions"], last_d["reactions"]) < 1e-8
+    assert direct["solver"]["linear"] == "direct" and iterative["solver"]["linear"] == "iterative"
+    assert direct["solver"]["petsc_options"]["pc_type"] == "lu"
+    # the iterative preset did iterate, and every Newton iteration's count is recorded
+    for step in iterative["steps"]:
+        counts = step["linear_iterations_per_newton"]
+        assert len(counts) == step["newton_iterations"]
+        assert sum(counts) == step["linear_iterations"]
+    assert max(max(s["linear_iterations_per_newton"]) for s in iterative["steps"]) > 1
+
+
+def test_cook_taylor_hood(shared_tmp: Path) -> None:
+    raw = example("cook")
+    raw["mesh"]["cells"] = 4
+    direct, iterative = both_presets(raw, shared_tmp)
+    assert_same_answers(direct, iterative)
+    options = iterative["solver"]["petsc_options"]
+    assert options["pc_type"] == "fieldsplit" and options["pc_fieldsplit_type"] == "schur"
+    assert options["ksp_rtol"] == 1e-12  # the user's option won over the preset's
+
+
+def test_isometric_contraction(shared_tmp: Path) -> None:
+    raw = example("isometric")
+    raw["mesh"]["size"] = 0.03  # the coarsest the curvature sizing allows: 37621 dofs
+    direct, iterative = both_presets(raw, shared_tmp, steps=1)
+    assert_same_answers(direct, iterative)
+
+
+def test_uniaxial_displacement_formulation(shared_tmp: Path) -> None:
+    raw = example("uniaxial")
+    raw["boundary"][-1]["value"] = [2.0e3, 5.0e2, 0.0]  # with a shear part: not a homogeneous deformation
+    direct, iterative = both_presets(raw, shared_tmp)
+    assert_same_answers(direct, iterative)
+    assert iterative["solver"]["petsc_options"]["pc_type"] == "gamg"
+
+
+def test_auto_is_direct_on_small_problems(shared_tmp: Path) -> None:
+    summary = run_raw(quiet(example("uniaxial"), "auto", steps=1), shared_tmp)
+    solver = summary["solver"]
+    assert solver["linear_requested"] == "auto" and solver["linear"] == "direct"
+    assert solver["dofs"] == summary["dofs"] < solver["auto_dofs"]
+    # the threshold the key's documentation states is the one the solver uses
+    from model.config.solver import NewtonSettings
+    from model.solvers.linear import AUTO_DOFS
+
+    assert solver["auto_dofs"] == AUTO_DOFS
+    assert f"below {AUTO_DOFS} unknowns" in NewtonSettings.model_fields["linear"].description
+
+
+def bar(n: int, nu: float) -> dict[str, Any]:
+    """A 2 x 1 x 1 bar, clamped at x = 0, sheared at x = 2; Taylor-Hood P2/P1 neo-Hookean, 2n x n x n cells."""
+    return {"mesh": {"generator": "box", "size": [2.0, 1.0, 1.0], "cells": [2 * n, n, n]},
+            "discretization": {"degree": 2, "quadrature_degree": 2, "formulation": "mixed"},
+            "material": [{"region": "all", "law": "neo_hookean", "E": 1.0e4, "nu": nu}],
+            "boundary": [{"on": "xmin", "type": "displacement", "value": [0.0, 0.0, 0.0]},
+                         {"on": "xmax", "type": "traction", "value": [0.0, 100.0, 30.0]}]}
+
+
+def mean_iterations(summary: dict[str, Any]) -> float:
+    counts = [c for step in summary["steps"] for c in step["linear_iterations_per_newton"]]
+    return float(np.mean(counts))
+
+
+def test_taylor_hood_iterations_do_not_grow(shared_tmp: Path) -> None:
+    """Linear iterations per Newton iteration (ksp_rtol 1e-8, the preset's): refining the mesh once (at nu 0.3 and
+    at 0.4999) or going from nu 0.3 to 0.4999 (on either mesh) changes them by less than 30 %."""
+    counts = {}
+    for n, nu in ((2, 0.3), (4, 0.3), (2, 0.4999), (4, 0.4999)):
+        summary = run_raw(quiet(bar(n, nu), "iterative", steps=1), shared_tmp / f"{n}_{nu}")
+        assert summary["status"] == "completed"
+        counts[n, nu] = mean_iterations(summary)
+    assert min(counts.values()) > 3, counts  # a real iteration, not a direct solve in disguise
+    pairs = [((2, nu), (4, nu)) for nu in (0.3, 0.4999)] + [((n, 0.3), (n, 0.4999)) for n in (2, 4)]
+    for a, b in pairs:
+        assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < 1.3, (a, b, counts)
+
+
+@pytest.mark.parametrize(("options", "key"), [
+    ({"fieldsplit_0_pc_type": "gamg"}, "solver.petsc_options.fieldsplit_0_pc_type"),
+    ({"fieldsplit_displacement_ksp_type": "cg"}, "solver.petsc_options.fieldsplit_displacement_ksp_type"),
+])
+def test_fieldsplit_options_must_name_u_or_p(shared_tmp: Path, options: dict[str, Any], key: str) -> None:
+    raw = quiet(example("cook"), "iterative", options)
+    raw["mesh"]["cells"] = 2
+    with pytest.raises(ConfigError, match=rf"^{key}: the fields of the mixed formulation are named u and p"):
+        run_raw(raw, shared_tmp)
+    assert not (shared_tmp / "summary.json").exists()
+
+
+def test_fields_are_not_redefined(shared_tmp: Path) -> None:
+    raw = quiet(example("cook"), "iterative", {"pc_fieldsplit_0_fields": "0,1,2"})
+    raw["mesh"]["cells"] = 2
+    with pytest.raises(ConfigError, match=r"^solver\.petsc_options\.pc_fieldsplit_0_fields: the solver defines"):
+        run_raw(raw, shared_tmp)
+
+
+def test_fieldsplit_needs_the_mixed_formulation(shared_tmp: Path) -> None:
+    raw = quiet(example("uniaxial"), "iterative", {"pc_type": "fieldsplit"})
+    with pytest.raises(ConfigError, match=r"^solver\.petsc_options\.pc_type: fieldsplit needs the mixed formulation"):
+        run_raw(raw, shared_tmp)
+    assert not (shared_tmp / "summary.json").exists()
+
+
+def test_iterative_mixed_needs_a_shear_modulus(shared_tmp: Path) -> None:
+    raw = quiet(bar(1, 0.3), "iterative")
+    raw["material"] = [{"region": "all", "law": "volume", "kappa": 1.0e4}]
+    with pytest.raises(ConfigError, match=r"^solver\.linear: \"iterative\" with the mixed formulation needs the "
+                                          r"shear modulus.*material\[0\]"):
+        run_raw(raw, shared_tmp)
+
+
+def test_unknown_preset_is_a_config_error(shared_tmp: Path) -> None:
+    with pytest.raises(ConfigError, match=r"^solver\.linear"):
+        run_raw(quiet(example("uniaxial"), "fast"), shared_tmp)
+
+
+def test_iterative_mixed_refuses_vi_contact() -> None:
+    from model.config import parse
+    from model.pipeline import build
+    from model.solvers.linear import resolve
+
+    raw = quiet(example("cook"), "iterative")
+    raw["mesh"]["cells"] = 2
+    problem = build(parse(raw, Path("examples"))).problem
+    with pytest.raises(ConfigError, match=r"^solver\.linear: \"iterative\" with the mixed formulation cannot be used "
+                                          r"with contact method \"vi\""):
+        resolve(problem, "iterative", vi=True)
+    assert resolve(problem, "auto", vi=True).preset == "direct"
+    assert resolve(problem, "iterative").options["pc_type"] == "fieldsplit"
