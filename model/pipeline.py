@@ -305,9 +305,13 @@ class RunResult:
         return out
 
 
-def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None) -> Any:
+def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None,
+                objective: bool | None = None) -> Any:
     """The solver [solver] asks for: NewtonSolver (exact or projected tangent), ProjectiveDynamicsSolver,
-    or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface)."""
+    or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface). The line search is
+    NewtonSolver's default (bt on the total potential where the problem has one, else basic:
+    model.solvers.newton.default_line_search) unless solver.petsc_options sets snes_linesearch_type;
+    ``objective`` (None: where there is a potential) is NewtonSolver's."""
     solver = config.solver
     if solver.method == "projective_dynamics":
         from model.solvers.projective_dynamics import ProjectiveDynamicsSolver
@@ -318,8 +322,9 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
     if contacts:
         from model.solvers.contact import make_contact_solver
 
-        return make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent)
-    return NewtonSolver(problem, config.petsc_options, tangent=solver.tangent)
+        return make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent,
+                                   objective=objective)
+    return NewtonSolver(problem, config.petsc_options, tangent=solver.tangent, objective=objective)
 
 
 def _dynamics(setup: Setup, config: RunConfig) -> Any:
@@ -363,8 +368,12 @@ def _initial_equilibrium(setup: Setup, config: RunConfig) -> None:
     log.info("initial equilibrium reached (activation continuation)")
 
 
-def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
+def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD, *,
+        objective: bool | None = None) -> dict[str, Any]:
     """Run a configuration; returns the summary (also written to OUT/summary.json).
+
+    ``objective``: whether SNES gets the total potential as its objective (make_solver; None, the default:
+    where the problem has one). False gives the residual-norm line searches (benchmarks/line_search.py).
 
     Raises ConfigError before any solve on bad input, SolveFailed (after writing
     the summary) when SNES fails beyond the allowed cut-backs.
@@ -384,7 +393,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     if dynamic and config.dynamics.initial == "equilibrium":
         _initial_equilibrium(setup, config)
     dynamics = _dynamics(setup, config) if dynamic else None
-    solver = make_solver(problem, config, setup.contacts)
+    solver = make_solver(problem, config, setup.contacts, objective=objective)
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png,
                           stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"))
     msh = setup.domain.mesh
@@ -406,6 +415,9 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "status": "running",
         "steps": [],
     }
+    line_search = getattr(solver, "line_search", None)
+    if line_search is not None:  # the one SNES uses: {"type": "bt", "merit": "total_potential"}, ...
+        summary["solver"]["line_search"] = line_search
     if setup.probes.snapped:
         summary["snapped_probes"] = setup.probes.snapped
     summary["scale_check"] = scale.figures

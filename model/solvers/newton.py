@@ -13,6 +13,27 @@ the residual is unchanged, the Newton matrices are positive semidefinite, so CG 
 algebraic multigrid (``ksp_type = "cg"``, ``pc_type = "gamg"``) can solve them. For the
 displacement formulation the matrix carries the rigid-body modes as its near null space
 (used by GAMG, ignored by LU).
+
+Line search (``default_line_search``, the one place the default is set; ``snes_linesearch_type`` in the
+options overrides it). When the problem has a potential (ElasticityProblem.potential_reason is None: no
+follower pressure, no inertia or damping terms, displacement formulation), Newton minimises
+
+    Pi(u) = sum_r int psi_r(F) dx_r + sum of the added energies - lambda (int t . u ds + int b . u dx)
+
+over the displacements that satisfy the Dirichlet conditions, and SNES gets Pi as its objective
+(SNESSetObjective, ``objective``): ``bt`` then backtracks on Pi (Armijo: Pi(x - s dx) <= Pi(x) - 1e-4 s R . dx)
+instead of on |R|^2: the Newton step descends |R|^2 too, but only over a short distance far from the solution
+on bending and nearly incompressible problems, so that bt on |R|^2 cuts every step short and stalls.
+The default there is ``bt`` on Pi; without a potential it is ``basic`` (full Newton steps, the load
+stepping's cut-back as the globalisation):
+measured over every example and an L-bracket cantilever by benchmarks/line_search.py (docs/solvers.md).
+With an objective, a solve that starts off its Dirichlet values (the load factor moved them) first takes one
+full Newton step, which puts the constrained dofs onto their values (the Newton matrix has identity rows there):
+the minimisation, and the Armijo test, hold on that affine space only. That step counts as one Newton iteration.
+Near the solution Pi changes by about |R|^2 / k, below its round-off, and the Armijo test can fail on noise
+(DIVERGED_LINE_SEARCH at |R| ~ 1e-7 |R_0|, or a step cut so short that snes_stol stops SNES with |R| above the
+tolerance): the solve then finishes with full steps from there, within the
+iterations left, to the original tolerance (and fails as a solve with ``basic`` would when they do not converge).
 """
 
 from __future__ import annotations
@@ -36,11 +57,11 @@ from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
 
-#: Defaults: Newton with backtracking line search, MUMPS LU. Tolerances tight enough that
+#: Defaults: Newton, MUMPS LU. Tolerances tight enough that
 #: serial and parallel runs agree to ~1e-10 (quadratic convergence makes them cheap).
+#: The line search is not among them: default_line_search picks it per problem.
 DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "snes_type": "newtonls",
-    "snes_linesearch_type": "bt",
     "snes_rtol": 1e-10,
     "snes_atol": 1e-12,
     "snes_stol": 1e-12,
@@ -49,6 +70,17 @@ DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
 }
+
+#: SNES types with a line search
+LINE_SEARCH_SNES = ("newtonls", "vinewtonrsls", "vinewtonssls")
+#: line searches that use an objective when SNES has one (the others ignore it)
+OBJECTIVE_LINE_SEARCHES = ("bt", "l2")
+
+
+def default_line_search(problem: ElasticityProblem) -> str:
+    """``bt`` (on the total potential) when the problem has one, else ``basic`` (module docstring)."""
+    return "bt" if problem.potential_reason() is None else "basic"
+
 
 #: Jacobians NewtonSolver can use: the consistent one, or its PSD projection (model.solvers.tangent).
 TANGENTS = ("exact", "projected")
@@ -247,11 +279,15 @@ class NewtonSolver:
 
     ``tangent``: "exact" (the consistent Jacobian, ufl.derivative of the residual) or
     "projected" (model.solvers.tangent.ProjectedTangent; displacement formulation only).
+    ``objective``: give SNES the total potential as its objective (module docstring); None (the default):
+    when the problem has one and there are no ``bounds`` (SNES VI with an objective line search fails in PETSc
+    with "Cannot change local size of Amat"). True on a problem without one, or with bounds, is a ValueError.
     """
 
     def __init__(self, problem: ElasticityProblem, options: dict[str, str | int | float | bool] | None = None,
                  prefix: str | None = None, tangent: str = "exact",
-                 bounds: Callable[[PETSc.Vec, PETSc.Vec], None] | None = None) -> None:
+                 bounds: Callable[[PETSc.Vec, PETSc.Vec], None] | None = None,
+                 objective: bool | None = None) -> None:
         if tangent not in TANGENTS:
             raise ValueError(f"solver.tangent: {tangent!r} is not one of {', '.join(TANGENTS)}")
         self.problem = problem
@@ -275,9 +311,19 @@ class NewtonSolver:
         self.x = compat.petsc_vector(problem.solution).copy()
         self.snes = PETSc.SNES().create(comm)
         self.snes.setFunction(self._residual, self.b)
+        self.snes.setConvergenceHistory(reset=True)  # |R_0| of a solve (_finish_with_full_steps)
         self.snes.setJacobian(self._jacobian, self.A)
+        reason = problem.potential_reason()
+        if bounds is not None:  # PETSc's VI solvers reject a line search on an objective (the reduced system
+            reason = "the VI solvers' line search takes no objective"  # changes size: "Cannot change local size")
+        if objective and reason is not None:
+            raise ValueError(f"objective: {reason}")
+        self.objective = reason is None if objective is None else bool(objective)
+        if self.objective:
+            self.snes.setObjective(self._objective)
         self.prefix = prefix or f"elasticity{next(_counter)}_"
         self.options = {**DEFAULT_OPTIONS, **(options or {})}
+        self.options.setdefault("snes_linesearch_type", default_line_search(problem))
         self.user_options = list(options or {})
         db = PETSc.Options()
         for key, value in self.options.items():
@@ -320,6 +366,81 @@ class NewtonSolver:
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         compat.set_bc(b, bcs, x, -1.0)
 
+    def _objective(self, snes: PETSc.SNES, x: PETSc.Vec) -> float:
+        """Pi(x), the total potential (ElasticityProblem.total_potential), the same on every rank."""
+        self._copy_in(x)
+        return self.problem.total_potential()
+
+    @property
+    def line_search(self) -> dict[str, str]:
+        """The line search SNES uses and its merit function, for summary.json: {"type": ..., "merit": ...} with
+        merit "total_potential" (bt or l2 with the objective), "residual_norm" (bt or l2 without) or "none"."""
+        # from the options SNES was configured with (petsc4py 3.18 has no SNES.getLineSearch)
+        kind = str(self.options["snes_linesearch_type"]) if self.snes.getType() in LINE_SEARCH_SNES else "none"
+        if kind in OBJECTIVE_LINE_SEARCHES:
+            merit = "total_potential" if self.objective else "residual_norm"
+        else:
+            merit = "none"
+        return {"type": kind, "merit": merit}
+
+    def _off_dirichlet(self) -> bool:
+        """Whether self.x differs from the Dirichlet values (the load factor has moved them), on any rank."""
+        gap = self.x.duplicate()
+        gap.set(0.0)
+        compat.set_bc(gap, self.problem.bcs, self.x, -1.0)  # x - g on the constrained dofs
+        largest = gap.norm(PETSc.NormType.NORM_INFINITY)
+        scale = max(self.x.norm(PETSc.NormType.NORM_INFINITY), largest)
+        gap.destroy()
+        return largest > 1e-14 * scale
+
+    def _dirichlet_step(self) -> float:
+        """One full Newton step from self.x (the first iteration SNES would take with ``basic``): afterwards
+        the constrained dofs hold their values, and the minimisation of Pi is on the affine space. Returns |R|
+        at self.x before the step (Dirichlet rows: x - g), the |R_0| of the solve."""
+        self._residual(self.snes, self.x, self.b)
+        initial_norm = self.b.norm()
+        self._jacobian(self.snes, self.x, self.A, self.A)
+        ksp = self.snes.getKSP()
+        ksp.setOperators(self.A, self.A)
+        dx = self.x.duplicate()
+        ksp.solve(self.b, dx)
+        self.x.axpy(-1.0, dx)
+        dx.destroy()
+        return float(initial_norm)
+
+    def _finish_with_full_steps(self, used: int, initial_norm: float | None) -> tuple[int, int]:
+        """After ``bt`` on Pi gave up (DIVERGED_LINE_SEARCH), or stopped on a step it had cut to nothing
+        (CONVERGED_SNORM_RELATIVE with |R| above the tolerance): full Newton steps from the last iterate, at most the
+        iterations left, to the tolerance of the original solve (|R| <= max(atol, rtol |R_0|)). Near the solution Pi
+        changes by ~|R|^2 / k, below its round-off, and the Armijo test fails on noise. Returns the Newton and
+        linear iterations it took ((0, 0) when it did not run)."""
+        if not (self.objective and self.line_search["merit"] == "total_potential"):
+            return 0, 0
+        reason = self.snes.getConvergedReason()
+        if reason not in (PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH,
+                          PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE):
+            return 0, 0
+        if initial_norm is None:
+            history = self.snes.getConvergenceHistory()[0]
+            initial_norm = float(history[0]) if len(history) else 0.0
+        rtol, atol, _, max_it = self.snes.getTolerances()
+        target = max(atol, rtol * initial_norm)
+        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and self.snes.getFunctionNorm() <= target:
+            return 0, 0
+        log.debug("line search on Pi failed at |R| = %.3e after %d iterations: full steps to %.3e",
+                  self.snes.getFunctionNorm(), used, target)
+        key = f"{self.prefix}snes_linesearch_type"
+        db = PETSc.Options()
+        db[key] = "basic"
+        try:
+            self.snes.setFromOptions()
+            self.snes.setTolerances(atol=target, max_it=max(max_it - used, 1))
+            self.snes.solve(None, self.x)
+            return self.snes.getIterationNumber(), self.snes.getLinearSolveIterations()
+        finally:
+            db[key] = self.options["snes_linesearch_type"]
+            self.snes.setFromOptions()  # the configured line search and tolerances again
+
     def _jacobian(self, snes: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
         self._copy_in(x)
         if self.projected is not None:
@@ -338,7 +459,23 @@ class NewtonSolver:
         if self.bounds is not None:
             self.bounds(self.xl, self.xu)
             self.snes.setVariableBounds(self.xl, self.xu)
-        self.snes.solve(None, self.x)
+        extra = 0
+        tolerances = self.snes.getTolerances()
+        initial_norm: float | None = None  # |R_0| of the solve, when SNES does not see it
+        if self.objective and self.line_search["merit"] == "total_potential" and self._off_dirichlet():
+            initial_norm = self._dirichlet_step()
+            extra = 1
+            rtol, atol, _, _ = tolerances  # converged as a solve from the first iterate would be
+            self.snes.setTolerances(atol=max(atol, rtol * initial_norm), max_it=max(tolerances[3] - 1, 1))
+        try:
+            self.snes.solve(None, self.x)
+        finally:
+            self.snes.setTolerances(*tolerances)
+        iterations = self.snes.getIterationNumber() + extra
+        linear_iterations = self.snes.getLinearSolveIterations()
+        more, linear = self._finish_with_full_steps(iterations, initial_norm)
+        iterations += more
+        linear_iterations += linear
         if not self._checked:
             self._checked = True
             self.unused_options = unused_options(self.prefix, self.user_options)
@@ -351,8 +488,8 @@ class NewtonSolver:
             converged=reason > 0,
             reason=int(reason),
             reason_name=REASONS.get(int(reason), str(reason)),
-            iterations=self.snes.getIterationNumber(),
-            linear_iterations=self.snes.getLinearSolveIterations(),
+            iterations=iterations,
+            linear_iterations=linear_iterations,
             residual_norm=float(self.snes.getFunctionNorm()),
             where=str(where) if where is not None else "",
             largest_residual=where.as_dict() if where is not None else None,
