@@ -30,10 +30,12 @@ measured over every example and an L-bracket cantilever by benchmarks/line_searc
 With an objective, a solve that starts off its Dirichlet values (the load factor moved them) first takes one
 full Newton step, which puts the constrained dofs onto their values (the Newton matrix has identity rows there):
 the minimisation, and the Armijo test, hold on that affine space only. That step counts as one Newton iteration.
-Near the solution Pi changes by about |R|^2 / k, below its round-off, and the Armijo test can fail on noise
-(DIVERGED_LINE_SEARCH at |R| ~ 1e-7 |R_0|, or a step cut so short that snes_stol stops SNES with |R| above the
-tolerance): the solve then finishes with full steps from there, within the
-iterations left, to the original tolerance (and fails as a solve with ``basic`` would when they do not converge).
+Near the solution Pi changes by about |R|^2 / k, down at its round-off, and the Armijo test passes or fails on
+noise (DIVERGED_LINE_SEARCH at |R| ~ 1e-7 |R_0|, steps cut for nothing, or cut so short that snes_stol stops SNES
+above the tolerance): bt on Pi runs until |R| <= FULL_STEPS_BELOW |R_0| (1e-5), where Newton converges
+quadratically, and the solve finishes with full steps from there, within the iterations left, to the original
+tolerance (failing as a solve with ``basic`` would when they do not converge). Farther out a failed line search
+fails the solve (the load stepping cuts back).
 """
 
 from __future__ import annotations
@@ -71,6 +73,8 @@ DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "pc_factor_mat_solver_type": "mumps",
 }
 
+#: bt on the total potential hands over to full Newton steps once |R| <= FULL_STEPS_BELOW |R_0|
+FULL_STEPS_BELOW = 1e-5
 #: SNES types with a line search
 LINE_SEARCH_SNES = ("newtonls", "vinewtonrsls", "vinewtonssls")
 #: line searches that use an objective when SNES has one (the others ignore it)
@@ -311,7 +315,6 @@ class NewtonSolver:
         self.x = compat.petsc_vector(problem.solution).copy()
         self.snes = PETSc.SNES().create(comm)
         self.snes.setFunction(self._residual, self.b)
-        self.snes.setConvergenceHistory(reset=True)  # |R_0| of a solve (_finish_with_full_steps)
         self.snes.setJacobian(self._jacobian, self.A)
         reason = problem.potential_reason()
         if bounds is not None:  # PETSc's VI solvers reject a line search on an objective (the reduced system
@@ -408,27 +411,21 @@ class NewtonSolver:
         dx.destroy()
         return float(initial_norm)
 
-    def _finish_with_full_steps(self, used: int, initial_norm: float | None) -> tuple[int, int]:
-        """After ``bt`` on Pi gave up (DIVERGED_LINE_SEARCH), or stopped on a step it had cut to nothing
-        (CONVERGED_SNORM_RELATIVE with |R| above the tolerance): full Newton steps from the last iterate, at most the
-        iterations left, to the tolerance of the original solve (|R| <= max(atol, rtol |R_0|)). Near the solution Pi
-        changes by ~|R|^2 / k, below its round-off, and the Armijo test fails on noise. Returns the Newton and
-        linear iterations it took ((0, 0) when it did not run)."""
-        if not (self.objective and self.line_search["merit"] == "total_potential"):
-            return 0, 0
+    def _finish_with_full_steps(self, used: int, target: float, switch: float) -> tuple[int, int]:
+        """Full Newton steps from the last iterate of bt on Pi, at most the iterations left, to the tolerance of the
+        solve, ``target`` = max(atol, rtol |R_0|), when bt on Pi stopped at |R| <= ``switch`` = FULL_STEPS_BELOW |R_0|
+        (by that tolerance, or by a failed line search or a step cut to nothing, snes_stol): near the solution Pi
+        changes by ~|R|^2 / k, down at its round-off, the Armijo test passes or fails on noise and cuts good steps.
+        Returns the Newton and linear iterations it took ((0, 0) when it did not run)."""
+        norm = self.snes.getFunctionNorm()
         reason = self.snes.getConvergedReason()
-        if reason not in (PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH,
-                          PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE):
+        stopped = (PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS, PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE,
+                   PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH, PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE)
+        if reason not in stopped or norm <= target or norm > switch:
             return 0, 0
-        if initial_norm is None:
-            history = self.snes.getConvergenceHistory()[0]
-            initial_norm = float(history[0]) if len(history) else 0.0
-        rtol, atol, _, max_it = self.snes.getTolerances()
-        target = max(atol, rtol * initial_norm)
-        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and self.snes.getFunctionNorm() <= target:
-            return 0, 0
-        log.debug("line search on Pi failed at |R| = %.3e after %d iterations: full steps to %.3e",
-                  self.snes.getFunctionNorm(), used, target)
+        max_it = self.snes.getTolerances()[3]
+        log.debug("bt on Pi stopped at |R| = %.3e after %d iterations (%s): full steps to %.3e", norm, used,
+                  REASONS.get(int(reason), reason), target)
         key = f"{self.prefix}snes_linesearch_type"
         db = PETSc.Options()
         db[key] = "basic"
@@ -461,21 +458,27 @@ class NewtonSolver:
             self.snes.setVariableBounds(self.xl, self.xu)
         extra = 0
         tolerances = self.snes.getTolerances()
-        initial_norm: float | None = None  # |R_0| of the solve, when SNES does not see it
-        if self.objective and self.line_search["merit"] == "total_potential" and self._off_dirichlet():
-            initial_norm = self._dirichlet_step()
-            extra = 1
-            rtol, atol, _, _ = tolerances  # converged as a solve from the first iterate would be
-            self.snes.setTolerances(atol=max(atol, rtol * initial_norm), max_it=max(tolerances[3] - 1, 1))
+        rtol, atol, _, max_it = tolerances
+        on_pi = self.objective and self.line_search["merit"] == "total_potential"
+        if on_pi:  # bt on Pi down to FULL_STEPS_BELOW |R_0|, then full steps (_finish_with_full_steps)
+            if self._off_dirichlet():
+                initial_norm = self._dirichlet_step()
+                extra = 1
+            else:
+                self._residual(self.snes, self.x, self.b)
+                initial_norm = float(self.b.norm())
+            target = max(atol, rtol * initial_norm)
+            self.snes.setTolerances(atol=max(target, FULL_STEPS_BELOW * initial_norm), max_it=max(max_it - extra, 1))
         try:
             self.snes.solve(None, self.x)
         finally:
             self.snes.setTolerances(*tolerances)
         iterations = self.snes.getIterationNumber() + extra
         linear_iterations = self.snes.getLinearSolveIterations()
-        more, linear = self._finish_with_full_steps(iterations, initial_norm)
-        iterations += more
-        linear_iterations += linear
+        if on_pi:
+            more, linear = self._finish_with_full_steps(iterations, target, FULL_STEPS_BELOW * initial_norm)
+            iterations += more
+            linear_iterations += linear
         if not self._checked:
             self._checked = True
             self.unused_options = unused_options(self.prefix, self.user_options)
