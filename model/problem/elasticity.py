@@ -45,8 +45,8 @@ comes from an energy: the materials, dead tractions and body forces, and add_ene
 penalties, augmented Lagrangian contact at fixed multipliers). Then Newton's problem is the minimisation of Pi
 over the displacements that satisfy the Dirichlet conditions, and Pi is the merit function of a line search
 (model.solvers.newton). There is none with a follower pressure (no potential), with residual terms added with
-add_residual (inertia and damping of a time integrator), or in the mixed formulation, whose Pi(u, p) is a saddle
-(W + p g - p^2 / (2 kappa) is maximised in p), not a minimum.
+add_residual (inertia and damping of a time integrator, added as residuals; docs/solvers.md), or in the mixed
+formulation, whose Pi(u, p) is a saddle (W + p g - p^2 / (2 kappa) is maximised in p), not a minimum.
 """
 
 from __future__ import annotations
