@@ -306,9 +306,13 @@ class RunResult:
         return out
 
 
-def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None) -> Any:
+def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None,
+                objective: bool | None = None) -> Any:
     """The solver [solver] asks for: NewtonSolver (exact or projected tangent), ProjectiveDynamicsSolver,
-    or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface).
+    or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface). The line search is
+    NewtonSolver's default (bt on the total potential where the problem has one, else basic:
+    model.solvers.newton.default_line_search) unless solver.petsc_options sets snes_linesearch_type;
+    ``objective`` (None: where there is a potential) is NewtonSolver's.
 
     Newton's linear solver is the preset ``solver.linear`` resolves to for this problem's size and formulation
     (model.solvers.linear.resolve; ConfigError before any solve for a preset or fieldsplit options the problem
@@ -328,9 +332,10 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
         from model.solvers.contact import make_contact_solver
 
         made = make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent,
-                                   defaults=choice.options)
+                                   defaults=choice.options, objective=objective)
     else:
-        made = NewtonSolver(problem, config.petsc_options, tangent=solver.tangent, defaults=choice.options)
+        made = NewtonSolver(problem, config.petsc_options, tangent=solver.tangent, defaults=choice.options,
+                            objective=objective)
     made.linear_choice = choice
     log.info("linear solver: %s (%s asked, %d dofs)", choice.preset, choice.requested, choice.dofs)
     return made
@@ -402,8 +407,12 @@ def _initial_equilibrium(setup: Setup, config: RunConfig) -> None:
     log.info("initial equilibrium reached (activation continuation)")
 
 
-def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
+def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD, *,
+        objective: bool | None = None) -> dict[str, Any]:
     """Run a configuration; returns the summary (also written to OUT/summary.json).
+
+    ``objective``: whether SNES gets the total potential as its objective (make_solver; None, the default:
+    where the problem has one). False gives the residual-norm line searches (benchmarks/line_search.py).
 
     Raises ConfigError before any solve on bad input, SolveFailed (after writing
     the summary) when SNES fails beyond the allowed cut-backs.
@@ -423,7 +432,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     if dynamic and config.dynamics.initial == "equilibrium":
         _initial_equilibrium(setup, config)
     dynamics = _dynamics(setup, config) if dynamic else None
-    solver = make_solver(problem, config, setup.contacts)
+    solver = make_solver(problem, config, setup.contacts, objective=objective)
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png,
                           stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"))
     msh = setup.domain.mesh
@@ -447,6 +456,9 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "status": "running",
         "steps": [],
     }
+    line_search = getattr(solver, "line_search", None)
+    if line_search is not None:  # the one SNES uses: {"type": "bt", "merit": "total_potential"}, ...
+        summary["solver"]["line_search"] = line_search
     if setup.probes.snapped:
         summary["snapped_probes"] = setup.probes.snapped
     summary["scale_check"] = scale.figures

@@ -202,7 +202,8 @@ def test_cylinder_slides_on_a_moving_capsule() -> None:
     X, u = nodal_displacements(problem)
     assert max_all(np.abs(u - [0.2, 0.0, 0.0]).max(initial=0.0)) < 1e-9
     assert abs(problem.total_energy()) < 1e-10
-    assert sliding.max_gap() < 1e-12
+    # |R| <= snes_rtol |R_0| = 1e-10 * 2e4 lets the penalty (k = 1e6) hold a gap of ~1e-11
+    assert sliding.max_gap() < 1e-11
     solver.destroy()
 
 

@@ -183,8 +183,9 @@ def test_projected_newton_converges_to_the_exact_newton_solution(shared_tmp: Pat
     exact = final_probes(run_raw(bar_config({"tangent": "exact"}), shared_tmp / "exact"))
     summary = run_raw(bar_config({"tangent": "projected", "petsc_options": {"snes_max_it": 200}}),
                       shared_tmp / "projected")
-    assert {k: summary["solver"][k] for k in ("method", "tangent", "linear")} == {
-        "method": "newton", "tangent": "projected", "linear": "direct"}
+    assert {k: summary["solver"][k] for k in ("method", "tangent", "linear", "line_search")} == {
+        "method": "newton", "tangent": "projected", "linear": "direct",
+        "line_search": {"type": "bt", "merit": "total_potential"}}
     projected = final_probes(summary)
     assert np.abs(exact).max() > 0.3  # a real deformation
     np.testing.assert_allclose(projected, exact, rtol=0, atol=1e-8 * np.abs(exact).max())

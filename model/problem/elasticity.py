@@ -44,6 +44,15 @@ are shorter than at rest (isometric contraction), positive where longer. In the 
 kappa = inf psi is the Lagrangian density W + p g (p g vanishes at convergence). A follower pressure has
 no potential: with one, load_potential and total_potential are not reported (and the work of the
 pressure, path dependent, is not either).
+
+The potential as a function of the unknowns (``potential_reason()``, ``total_potential()``): the residual is
+its Gateaux derivative, R(u; v) = dPi/du [v] with Pi = total_potential, exactly when every term of the residual
+comes from an energy: the materials, dead tractions and body forces, and add_energy (contact and sliding
+penalties, augmented Lagrangian contact at fixed multipliers). Then Newton's problem is the minimisation of Pi
+over the displacements that satisfy the Dirichlet conditions, and Pi is the merit function of a line search
+(model.solvers.newton). There is none with a follower pressure (no potential), with residual terms added with
+add_residual (inertia and damping of a time integrator, added as residuals; docs/solvers.md), or in the mixed
+formulation, whose Pi(u, p) is a saddle (W + p g - p^2 / (2 kappa) is maximised in p), not a minimum.
 """
 
 from __future__ import annotations
@@ -176,6 +185,9 @@ class ElasticityProblem:
         self.load_potential: ufl.Form = zero * self.dx
         #: the boundaries carrying a follower pressure (no potential)
         self.follower_pressures: list[str] = []
+        #: how many residual terms add_residual added (inertia, damping: no potential)
+        self.residual_terms = 0
+        self._potential_form: compat.Form | None = None
         self._energy_form: compat.Form | None = None
         self._energy_forms: dict[str, compat.Form] | None = None
         #: per-cell input fields written with the results (fibre directions, activation), by name
@@ -229,6 +241,7 @@ class ElasticityProblem:
         self.stress_terms.append((P, dx))
         self._energy_form = None
         self._energy_forms = None
+        self._potential_form = None
 
     def _without_activation(self, law: Law, R: ufl.core.expr.Expr | None) -> ufl.core.expr.Expr | None:
         """psi(F; alpha = 0) of a law whose activation field alpha is set, else None (nothing to remove)."""
@@ -296,6 +309,7 @@ class ElasticityProblem:
         self.load_potential += -self.load_factor * ufl.inner(t, self.u) * self.boundary_measure(name)
         self._forms = None
         self._energy_forms = None
+        self._potential_form = None
 
     def add_pressure(self, name: str, pressure: float) -> None:
         """Follower pressure p on boundary ``name`` (positive pushes inwards), scaled by lambda.
@@ -309,6 +323,7 @@ class ElasticityProblem:
         self.follower_pressures.append(name)
         self._forms = None
         self._energy_forms = None
+        self._potential_form = None
 
     def add_energy(self, energy: ufl.Form, name: str = "added") -> None:
         """Add a potential Pi (a UFL form in the solution, e.g. a contact penalty): R += dPi/du [v].
@@ -324,6 +339,7 @@ class ElasticityProblem:
         self.stress_terms += self._stress_terms_of(energy)
         self._energy_form = None
         self._energy_forms = None
+        self._potential_form = None
         self._forms = None
 
     def _stress_terms_of(self, energy: ufl.Form) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
@@ -356,6 +372,7 @@ class ElasticityProblem:
         Call before a solver is created (the forms are compiled then).
         """
         self.internal += form
+        self.residual_terms += 1
         self._forms = None
 
     def add_load_hook(self, hook: Callable[[float], None]) -> None:
@@ -369,6 +386,7 @@ class ElasticityProblem:
         self.load_potential += -self.load_factor * ufl.inner(b, self.u) * self.region_measure(region)
         self._forms = None
         self._energy_forms = None
+        self._potential_form = None
 
     # --- forms ----------------------------------------------------------------------------------
 
@@ -470,6 +488,32 @@ class ElasticityProblem:
         if not self.follower_pressures:
             out["total_potential"] = sum(out.values())
         return out
+
+    def potential_reason(self) -> str | None:
+        """None when the residual is the derivative of total_potential (module docstring), else why it is not."""
+        if self.formulation != "displacement":
+            return "the mixed formulation's potential is a saddle in (u, p), not a minimum"
+        if self.follower_pressures:
+            return f"the follower pressure on {', '.join(repr(b) for b in self.follower_pressures)} has no potential"
+        if self.residual_terms:
+            return "residual terms without a potential (inertia, damping) were added"
+        return None
+
+    def total_potential(self) -> float:
+        """Pi(u) = int psi(F) dx + the added energies + load_potential at the current solution and load factor
+        (all ranks): the sum energies() reports as total_potential, from one compiled form. ValueError when the
+        residual is not its derivative (potential_reason)."""
+        reason = self.potential_reason()
+        if reason is not None:
+            raise ValueError(f"no total potential: {reason}")
+        if self._potential_form is None:
+            energy = self.material_energy + self.load_potential
+            for extra in self.extra_energies:
+                energy = energy + extra
+            self._potential_form = fem.form(energy)
+        self.update_state()
+        comm = self.domain.mesh.comm
+        return float(comm.allreduce(fem.assemble_scalar(self._potential_form), op=MPI.SUM))
 
     def stress_groups(self) -> list[tuple[ufl.core.expr.Expr, ufl.Measure]]:
         """(P, dx): the stress terms summed per measure (a material and an added energy on the same cells

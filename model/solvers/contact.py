@@ -53,6 +53,10 @@ class VISolver:
     def unused_options(self) -> list[str]:
         return self.newton.unused_options
 
+    @property
+    def line_search(self) -> dict[str, str]:
+        return self.newton.line_search
+
     def _predict(self) -> None:
         newton, problem = self.newton, self.problem
         x = newton.x
@@ -130,6 +134,10 @@ class UzawaSolver:
     def unused_options(self) -> list[str]:
         return self.newton.unused_options
 
+    @property
+    def line_search(self) -> dict[str, str]:
+        return self.newton.line_search
+
     def _residual(self) -> float:
         return max(c.uzawa_residual() / c.absolute_tolerance for c in self.contacts)
 
@@ -179,14 +187,14 @@ def make_contact_solver(problem: ElasticityProblem, contacts: Sequence[Contact],
                         options: dict[str, str | int | float | bool] | None = None, prefix: str | None = None,
                         tangent: str = "exact", predictor: bool = True,
                         defaults: dict[str, str | int | float | bool] | None = None,
-                        ) -> NewtonSolver | VISolver | UzawaSolver:
+                        objective: bool | None = None) -> NewtonSolver | VISolver | UzawaSolver:
     """The solver for a problem with contacts (build them first); all have NewtonSolver's interface.
     ``defaults``: the linear preset's options (model.solvers.linear), below ``options``.
 
     VI contacts: VISolver, a NewtonSolver with snes_type vinewtonrsls (VI_OPTIONS; a user snes_type
     must be a VI type) and the bounds of every VI contact (the tightest wins), with the predictor
     unless ``predictor`` is False. Augmented Lagrangian contacts: wrapped in UzawaSolver. Penalty
-    contacts need nothing (their energy is in the residual): a plain NewtonSolver.
+    contacts need nothing (their energy is in the residual): a plain NewtonSolver. ``objective``: NewtonSolver's.
     """
     options = dict(options or {})
     vi = [c for c in contacts if isinstance(c, VIContact)]
@@ -208,7 +216,8 @@ def make_contact_solver(problem: ElasticityProblem, contacts: Sequence[Contact],
             xl.array[:] = lower
             xu.array[:] = upper
 
-    newton = NewtonSolver(problem, options, prefix=prefix, tangent=tangent, bounds=bounds, defaults=defaults)
+    newton = NewtonSolver(problem, options, prefix=prefix, tangent=tangent, bounds=bounds, defaults=defaults,
+                          objective=objective)
     for c in vi:
         c.solver = newton
     inner: Any = VISolver(newton, vi, predictor) if vi else newton

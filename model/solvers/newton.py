@@ -13,6 +13,29 @@ the residual is unchanged, the Newton matrices are positive semidefinite, so CG 
 algebraic multigrid (``ksp_type = "cg"``, ``pc_type = "gamg"``) can solve them. For the
 displacement formulation the matrix carries the rigid-body modes as its near null space
 (used by GAMG, ignored by LU).
+
+Line search (``default_line_search``, the one place the default is set; ``snes_linesearch_type`` in the
+options overrides it). When the problem has a potential (ElasticityProblem.potential_reason is None: no
+follower pressure, no inertia or damping terms, displacement formulation), Newton minimises
+
+    Pi(u) = sum_r int psi_r(F) dx_r + sum of the added energies - lambda (int t . u ds + int b . u dx)
+
+over the displacements that satisfy the Dirichlet conditions, and SNES gets Pi as its objective
+(SNESSetObjective, ``objective``): ``bt`` then backtracks on Pi (Armijo: Pi(x - s dx) <= Pi(x) - 1e-4 s R . dx)
+instead of on |R|^2: the Newton step descends |R|^2 too, but only over a short distance far from the solution
+on bending and nearly incompressible problems, so that bt on |R|^2 cuts every step short and stalls.
+The default there is ``bt`` on Pi; without a potential it is ``basic`` (full Newton steps, the load
+stepping's cut-back as the globalisation):
+measured over every example and an L-bracket cantilever by benchmarks/line_search.py (docs/solvers.md).
+With an objective, a solve that starts off its Dirichlet values (the load factor moved them) first takes one
+full Newton step, which puts the constrained dofs onto their values (the Newton matrix has identity rows there):
+the minimisation, and the Armijo test, hold on that affine space only. That step counts as one Newton iteration.
+Near the solution Pi changes by about |R|^2 / k, down at its round-off, and the Armijo test passes or fails on
+noise (DIVERGED_LINE_SEARCH at |R| ~ 1e-7 |R_0|, steps cut for nothing, or cut so short that snes_stol stops SNES
+above the tolerance): bt on Pi runs until |R| <= FULL_STEPS_BELOW |R_0| (1e-5), where Newton converges
+quadratically, and the solve finishes with full steps from there, within the iterations left, to the original
+tolerance (failing as a solve with ``basic`` would when they do not converge). Farther out a failed line search
+fails the solve (the load stepping cuts back).
 """
 
 from __future__ import annotations
@@ -37,11 +60,11 @@ from model.solvers import linear
 
 log = logging.getLogger(__name__)
 
-#: Defaults: Newton with backtracking line search, MUMPS LU. Tolerances tight enough that
+#: Defaults: Newton, MUMPS LU. Tolerances tight enough that
 #: serial and parallel runs agree to ~1e-10 (quadratic convergence makes them cheap).
+#: The line search is not among them: default_line_search picks it per problem.
 DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "snes_type": "newtonls",
-    "snes_linesearch_type": "bt",
     "snes_rtol": 1e-10,
     "snes_atol": 1e-12,
     "snes_stol": 1e-12,
@@ -50,6 +73,19 @@ DEFAULT_OPTIONS: dict[str, str | int | float | bool] = {
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
 }
+
+#: bt on the total potential hands over to full Newton steps once |R| <= FULL_STEPS_BELOW |R_0|
+FULL_STEPS_BELOW = 1e-5
+#: SNES types with a line search
+LINE_SEARCH_SNES = ("newtonls", "vinewtonrsls", "vinewtonssls")
+#: line searches that use an objective when SNES has one (the others ignore it)
+OBJECTIVE_LINE_SEARCHES = ("bt", "l2")
+
+
+def default_line_search(problem: ElasticityProblem) -> str:
+    """``bt`` (on the total potential) when the problem has one, else ``basic`` (module docstring)."""
+    return "bt" if problem.potential_reason() is None else "basic"
+
 
 #: Jacobians NewtonSolver can use: the consistent one, or its PSD projection (model.solvers.tangent).
 TANGENTS = ("exact", "projected")
@@ -232,12 +268,16 @@ class NewtonSolver:
 
     ``tangent``: "exact" (the consistent Jacobian, ufl.derivative of the residual) or
     "projected" (model.solvers.tangent.ProjectedTangent; displacement formulation only).
+    ``objective``: give SNES the total potential as its objective (module docstring); None (the default):
+    when the problem has one and there are no ``bounds`` (SNES VI with an objective line search fails in PETSc
+    with "Cannot change local size of Amat"). True on a problem without one, or with bounds, is a ValueError.
     """
 
     def __init__(self, problem: ElasticityProblem, options: dict[str, str | int | float | bool] | None = None,
                  prefix: str | None = None, tangent: str = "exact",
                  bounds: Callable[[PETSc.Vec, PETSc.Vec], None] | None = None,
-                 defaults: dict[str, str | int | float | bool] | None = None) -> None:
+                 defaults: dict[str, str | int | float | bool] | None = None,
+                 objective: bool | None = None) -> None:
         if tangent not in TANGENTS:
             raise ValueError(f"solver.tangent: {tangent!r} is not one of {', '.join(TANGENTS)}")
         self.problem = problem
@@ -262,10 +302,19 @@ class NewtonSolver:
         self.snes = PETSc.SNES().create(comm)
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
+        reason = problem.potential_reason()
+        if bounds is not None:  # PETSc's VI solvers reject a line search on an objective (the reduced system
+            reason = "the VI solvers' line search takes no objective"  # changes size: "Cannot change local size")
+        if objective and reason is not None:
+            raise ValueError(f"objective: {reason}")
+        self.objective = reason is None if objective is None else bool(objective)
+        if self.objective:
+            self.snes.setObjective(self._objective)
         self.prefix = prefix or f"elasticity{next(_counter)}_"
         linear.check_options(problem, options or {})  # fieldsplit options this problem cannot take
         # DEFAULT_OPTIONS < the linear preset's ``defaults`` (model.solvers.linear) < the user's ``options``
         self.options = {**DEFAULT_OPTIONS, **(defaults or {}), **(options or {})}
+        self.options.setdefault("snes_linesearch_type", default_line_search(problem))
         self.user_options = list(options or {})
         db = PETSc.Options()
         for key, value in self.options.items():
@@ -312,6 +361,75 @@ class NewtonSolver:
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         compat.set_bc(b, bcs, x, -1.0)
 
+    def _objective(self, snes: PETSc.SNES, x: PETSc.Vec) -> float:
+        """Pi(x), the total potential (ElasticityProblem.total_potential), the same on every rank."""
+        self._copy_in(x)
+        return self.problem.total_potential()
+
+    @property
+    def line_search(self) -> dict[str, str]:
+        """The line search SNES uses and its merit function, for summary.json: {"type": ..., "merit": ...} with
+        merit "total_potential" (bt or l2 with the objective), "residual_norm" (bt or l2 without) or "none"."""
+        # from the options SNES was configured with (petsc4py 3.18 has no SNES.getLineSearch)
+        kind = str(self.options["snes_linesearch_type"]) if self.snes.getType() in LINE_SEARCH_SNES else "none"
+        if kind in OBJECTIVE_LINE_SEARCHES:
+            merit = "total_potential" if self.objective else "residual_norm"
+        else:
+            merit = "none"
+        return {"type": kind, "merit": merit}
+
+    def _off_dirichlet(self) -> bool:
+        """Whether self.x differs from the Dirichlet values (the load factor has moved them), on any rank."""
+        gap = self.x.duplicate()
+        gap.set(0.0)
+        compat.set_bc(gap, self.problem.bcs, self.x, -1.0)  # x - g on the constrained dofs
+        largest = gap.norm(PETSc.NormType.NORM_INFINITY)
+        scale = max(self.x.norm(PETSc.NormType.NORM_INFINITY), largest)
+        gap.destroy()
+        return largest > 1e-14 * scale
+
+    def _dirichlet_step(self) -> float:
+        """One full Newton step from self.x (the first iteration SNES would take with ``basic``): afterwards
+        the constrained dofs hold their values, and the minimisation of Pi is on the affine space. Returns |R|
+        at self.x before the step (Dirichlet rows: x - g), the |R_0| of the solve."""
+        self._residual(self.snes, self.x, self.b)
+        initial_norm = self.b.norm()
+        self._jacobian(self.snes, self.x, self.A, self.A)
+        ksp = self.snes.getKSP()
+        ksp.setOperators(self.A, self.A)
+        dx = self.x.duplicate()
+        ksp.solve(self.b, dx)
+        self.x.axpy(-1.0, dx)
+        dx.destroy()
+        return float(initial_norm)
+
+    def _finish_with_full_steps(self, used: int, target: float, switch: float) -> tuple[int, int]:
+        """Full Newton steps from the last iterate of bt on Pi, at most the iterations left, to the tolerance of the
+        solve, ``target`` = max(atol, rtol |R_0|), when bt on Pi stopped at |R| <= ``switch`` = FULL_STEPS_BELOW |R_0|
+        (by that tolerance, or by a failed line search or a step cut to nothing, snes_stol): near the solution Pi
+        changes by ~|R|^2 / k, down at its round-off, the Armijo test passes or fails on noise and cuts good steps.
+        Returns the Newton and linear iterations it took ((0, 0) when it did not run)."""
+        norm = self.snes.getFunctionNorm()
+        reason = self.snes.getConvergedReason()
+        stopped = (PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS, PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE,
+                   PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH, PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE)
+        if reason not in stopped or norm <= target or norm > switch:
+            return 0, 0
+        max_it = self.snes.getTolerances()[3]
+        log.debug("bt on Pi stopped at |R| = %.3e after %d iterations (%s): full steps to %.3e", norm, used,
+                  REASONS.get(int(reason), reason), target)
+        key = f"{self.prefix}snes_linesearch_type"
+        db = PETSc.Options()
+        db[key] = "basic"
+        try:
+            self.snes.setFromOptions()
+            self.snes.setTolerances(atol=target, max_it=max(max_it - used, 1))
+            self.snes.solve(None, self.x)
+            return self.snes.getIterationNumber(), self.snes.getLinearSolveIterations()
+        finally:
+            db[key] = self.options["snes_linesearch_type"]
+            self.snes.setFromOptions()  # the configured line search and tolerances again
+
     def _jacobian(self, snes: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
         self._copy_in(x)
         if self.projected is not None:
@@ -330,7 +448,29 @@ class NewtonSolver:
         if self.bounds is not None:
             self.bounds(self.xl, self.xu)
             self.snes.setVariableBounds(self.xl, self.xu)
-        self.snes.solve(None, self.x)
+        extra = 0
+        tolerances = self.snes.getTolerances()
+        rtol, atol, _, max_it = tolerances
+        on_pi = self.objective and self.line_search["merit"] == "total_potential"
+        if on_pi:  # bt on Pi down to FULL_STEPS_BELOW |R_0|, then full steps (_finish_with_full_steps)
+            if self._off_dirichlet():
+                initial_norm = self._dirichlet_step()
+                extra = 1
+            else:
+                self._residual(self.snes, self.x, self.b)
+                initial_norm = float(self.b.norm())
+            target = max(atol, rtol * initial_norm)
+            self.snes.setTolerances(atol=max(target, FULL_STEPS_BELOW * initial_norm), max_it=max(max_it - extra, 1))
+        try:
+            self.snes.solve(None, self.x)
+        finally:
+            self.snes.setTolerances(*tolerances)
+        iterations = self.snes.getIterationNumber() + extra
+        linear_iterations = self.snes.getLinearSolveIterations()
+        if on_pi:
+            more, linear = self._finish_with_full_steps(iterations, target, FULL_STEPS_BELOW * initial_norm)
+            iterations += more
+            linear_iterations += linear
         if not self._checked:
             self._checked = True
             self.unused_options = unused_options(self.prefix, self.user_options)
@@ -343,8 +483,8 @@ class NewtonSolver:
             converged=reason > 0,
             reason=int(reason),
             reason_name=REASONS.get(int(reason), str(reason)),
-            iterations=self.snes.getIterationNumber(),
-            linear_iterations=self.snes.getLinearSolveIterations(),
+            iterations=iterations,
+            linear_iterations=linear_iterations,
             residual_norm=float(self.snes.getFunctionNorm()),
             where=str(where) if where is not None else "",
             largest_residual=where.as_dict() if where is not None else None,
