@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 
@@ -108,10 +109,25 @@ def gmsh_session(options: Mapping[str, float] | None = None, name: str = "meshes
 CURVATURE_ELEMENTS = 16
 
 
-def curved_size_options(size: float) -> dict[str, float]:
-    """gmsh options for a maximum element size ``size``, refined on curved surfaces."""
+def curvature_elements(size: float, smallest_radius: float | None = None) -> int:
+    """Elements per 2 pi radians of curvature for maximum element size ``size``.
+
+    N = max(CURVATURE_ELEMENTS, ceil(CURVATURE_ELEMENTS r_min / size)): with the smallest radius of curvature
+    r_min given, surfaces of radius r get elements of 2 pi r / N, which for size < r_min is
+    (2 pi / CURVATURE_ELEMENTS) (r / r_min) size, proportional to ``size``: halving ``size`` halves every
+    element (a mesh-convergence or scaling study refines the thin tendons too, not only the interior).
+    Without ``smallest_radius``: CURVATURE_ELEMENTS.
+    """
+    if smallest_radius is None:
+        return CURVATURE_ELEMENTS
+    return max(CURVATURE_ELEMENTS, math.ceil(CURVATURE_ELEMENTS * smallest_radius / size - 1e-9))
+
+
+def curved_size_options(size: float, smallest_radius: float | None = None) -> dict[str, float]:
+    """gmsh options for a maximum element size ``size``, refined on curved surfaces
+    (:func:`curvature_elements` elements per 2 pi radians)."""
     return {
         "Mesh.MeshSizeMax": size,
         "Mesh.MeshSizeMin": 0.0,
-        "Mesh.MeshSizeFromCurvature": CURVATURE_ELEMENTS,
+        "Mesh.MeshSizeFromCurvature": curvature_elements(size, smallest_radius),
     }

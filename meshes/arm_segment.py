@@ -117,9 +117,10 @@ def build_arm_segment_model(
         gmsh.model.setPhysicalName(2, tag, name)
 
 
-def arm_segment_options(size: float) -> dict[str, float]:
-    """gmsh options used for maximum element size ``size`` (refined on curved surfaces)."""
-    return curved_size_options(size)
+def arm_segment_options(size: float, tendon_radius: float | None = None) -> dict[str, float]:
+    """gmsh options used for maximum element size ``size`` (refined on curved surfaces; below
+    ``size = tendon_radius`` the tendons' elements shrink with ``size``: meshes._gmsh.curvature_elements)."""
+    return curved_size_options(size, tendon_radius)
 
 
 def _check(length: float, radius: float, rm: float, rt: float, lt: float, spacing: float) -> None:
@@ -195,7 +196,7 @@ def arm_segment(
     lc = positive_float(_GENERATOR, "size", size)
     _check(total, r, rm, rt, lt, gap)
     start = time.perf_counter()
-    with gmsh_session(arm_segment_options(lc), name=_GENERATOR):
+    with gmsh_session(arm_segment_options(lc, rt), name=_GENERATOR):
         build_arm_segment_model(total, r, rm, rt, lt, gap)
         gmsh.model.mesh.generate(3)
         mesh = from_gmsh_model(gmsh.model)

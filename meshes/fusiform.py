@@ -132,9 +132,10 @@ def build_fusiform_model(
         gmsh.model.setPhysicalName(2, tag, name)
 
 
-def fusiform_options(size: float) -> dict[str, float]:
-    """gmsh options used for maximum element size ``size`` (refined on curved surfaces)."""
-    return curved_size_options(size)
+def fusiform_options(size: float, tendon_radius: float | None = None) -> dict[str, float]:
+    """gmsh options used for maximum element size ``size`` (refined on curved surfaces; below
+    ``size = tendon_radius`` the tendons' elements shrink with ``size``: meshes._gmsh.curvature_elements)."""
+    return curved_size_options(size, tendon_radius)
 
 
 def fusiform(
@@ -158,7 +159,8 @@ def fusiform(
         Length of each tendon, > 0.
     size:
         Maximum element size, > 0; curved surfaces are refined to
-        :data:`CURVATURE_ELEMENTS` elements per 2 pi radians.
+        max(:data:`CURVATURE_ELEMENTS`, 16 tendon_radius / size) elements per 2 pi
+        radians, so below ``size = tendon_radius`` every element shrinks with ``size``.
 
     Returns
     -------
@@ -176,7 +178,7 @@ def fusiform(
     if rt >= rb:
         raise ParameterError(f"fusiform: tendon_radius must be < belly_radius ({rb!r}), got {rt!r}")
     start = time.perf_counter()
-    with gmsh_session(fusiform_options(lc), name="fusiform"):
+    with gmsh_session(fusiform_options(lc, rt), name="fusiform"):
         build_fusiform_model(belly_length, rb, rt, tendon)
         gmsh.model.mesh.generate(3)
         mesh = from_gmsh_model(gmsh.model)

@@ -244,6 +244,29 @@ def test_fusiform_conforming(muscle: MeshData) -> None:
 
 # --- gmsh extraction and .msh files -------------------------------------------------------------
 
+def test_curvature_elements_scale_with_size() -> None:
+    from meshes._gmsh import CURVATURE_ELEMENTS, curvature_elements
+
+    assert curvature_elements(0.004) == CURVATURE_ELEMENTS
+    assert curvature_elements(0.004, 0.004) == CURVATURE_ELEMENTS  # the default fusiform: unchanged
+    assert curvature_elements(0.008, 0.004) == CURVATURE_ELEMENTS  # never coarser than 16 per turn
+    assert curvature_elements(0.002, 0.004) == 2 * CURVATURE_ELEMENTS
+    assert curvature_elements(2.0, 4.0) == 2 * CURVATURE_ELEMENTS  # in mm: the same mesh
+
+
+def test_fusiform_refines_with_size() -> None:
+    # below size = tendon_radius every element shrinks with size, the tendons' too: the cell count grows as
+    # size^-3 (measured 8580 at 0.004, 20584 at 0.003; before, the tendons' fixed curvature size kept coarse
+    # refinements nearly constant)
+    coarse = fusiform(size=0.004)
+    fine = fusiform(size=0.003)
+    ratio = fine.num_cells / coarse.num_cells
+    assert ratio > 0.8 * (4.0 / 3.0) ** 3, ratio
+    rt, lt = 0.004, 0.02
+    # the tendons keep their volume (their surface is refined too)
+    assert fine.volume("tendon_origin") == pytest.approx(math.pi * rt**2 * lt, rel=0.02)
+
+
 
 def test_msh_round_trip_from_gmsh(workdir: Path) -> None:
     path = workdir / "cylinder.msh"

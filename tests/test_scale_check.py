@@ -9,6 +9,7 @@ example stays silent; serial and 2 ranks give the same figures and messages.
 from __future__ import annotations
 
 import json
+import logging
 import subprocess
 import sys
 from pathlib import Path
@@ -17,6 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import EXAMPLES, ROOT, environment, example, run_raw, serial_only
+from mpi4py import MPI
 
 from model.config import load, parse
 from model.pipeline import build
@@ -154,3 +156,25 @@ def test_two_ranks_give_the_same_figures_and_messages() -> None:
         for key in ("first_increment_strain", "body_size"):
             assert figures[key] == pytest.approx(result.figures[key], rel=1e-8), key
         assert figures["moduli"] == result.moduli and figures["method"] == result.method
+
+
+@pytest.mark.parametrize("name", ["isometric", "uniaxial"])
+def test_iterative_solve_above_auto_dofs(name: str, monkeypatch: pytest.MonkeyPatch,
+                                        caplog: pytest.LogCaptureFixture) -> None:
+    # from linear.AUTO_DOFS unknowns the check solves with the iterative preset (LU would cost more than the
+    # whole iterative run on a large mesh): the same strain as LU, Taylor-Hood (Schur fieldsplit) and
+    # displacement formulation (CG + GAMG) alike
+    from model.solvers import linear
+
+    raw = example(name)
+    for key, value in COARSE.get(name, {}).items():
+        raw["mesh"][key.split(".")[1]] = value
+    lu = check(raw)
+    monkeypatch.setattr(linear, "AUTO_DOFS", 0)
+    with caplog.at_level(logging.DEBUG, logger="model.solvers.scale"):
+        iterative = check(raw)
+    if MPI.COMM_WORLD.rank == 0:  # logged on rank 0
+        assert any("the iterative preset's linear solve" in r.getMessage() for r in caplog.records)
+    assert lu.method == iterative.method == "linear solve"
+    assert iterative.first_increment_strain == pytest.approx(lu.first_increment_strain, rel=1e-6)
+    assert iterative.first_increment_strain > 0.0

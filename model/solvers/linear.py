@@ -334,17 +334,25 @@ def configure_fields(snes: PETSc.SNES, problem: ElasticityProblem, options: Opti
 
 
 class LinearMonitor:
-    """The linear iterations of every Newton iteration of the last solve (a SNES monitor: at Newton iteration
-    k > 0, SNESGetLinearSolveIterations minus its value at k - 1)."""
+    """The linear iterations of every Newton iteration of the last NewtonSolver.solve (a SNES monitor: at Newton
+    iteration k > 0 of a SNES solve, SNESGetLinearSolveIterations minus its value at k - 1). A solve may run
+    SNES more than once (bt on the total potential, then full steps) and take a Newton step of its own (the
+    Dirichlet step): ``reset`` starts a solve, ``add`` records a step taken outside SNES."""
 
     def __init__(self, snes: PETSc.SNES) -> None:
         self.per_newton: list[int] = []
         self._total = 0
         snes.setMonitor(self)
 
+    def reset(self) -> None:
+        self.per_newton = []
+        self._total = 0
+
+    def add(self, count: int) -> None:
+        self.per_newton.append(int(count))
+
     def __call__(self, snes: PETSc.SNES, iteration: int, norm: float) -> None:
-        if iteration == 0:
-            self.per_newton = []
+        if iteration == 0:  # a SNES solve starts: its count starts at 0
             self._total = 0
             return
         total = snes.getLinearSolveIterations()

@@ -388,10 +388,10 @@ class NewtonSolver:
         gap.destroy()
         return largest > 1e-14 * scale
 
-    def _dirichlet_step(self) -> float:
+    def _dirichlet_step(self) -> tuple[float, int]:
         """One full Newton step from self.x (the first iteration SNES would take with ``basic``): afterwards
         the constrained dofs hold their values, and the minimisation of Pi is on the affine space. Returns |R|
-        at self.x before the step (Dirichlet rows: x - g), the |R_0| of the solve."""
+        at self.x before the step (Dirichlet rows: x - g), the |R_0| of the solve, and the step's linear iterations."""
         self._residual(self.snes, self.x, self.b)
         initial_norm = self.b.norm()
         self._jacobian(self.snes, self.x, self.A, self.A)
@@ -401,7 +401,7 @@ class NewtonSolver:
         ksp.solve(self.b, dx)
         self.x.axpy(-1.0, dx)
         dx.destroy()
-        return float(initial_norm)
+        return float(initial_norm), int(ksp.getIterationNumber())
 
     def _finish_with_full_steps(self, used: int, target: float, switch: float) -> tuple[int, int]:
         """Full Newton steps from the last iterate of bt on Pi, at most the iterations left, to the tolerance of the
@@ -448,13 +448,15 @@ class NewtonSolver:
         if self.bounds is not None:
             self.bounds(self.xl, self.xu)
             self.snes.setVariableBounds(self.xl, self.xu)
-        extra = 0
+        extra = dirichlet_linear = 0
+        self.linear_monitor.reset()
         tolerances = self.snes.getTolerances()
         rtol, atol, _, max_it = tolerances
         on_pi = self.objective and self.line_search["merit"] == "total_potential"
         if on_pi:  # bt on Pi down to FULL_STEPS_BELOW |R_0|, then full steps (_finish_with_full_steps)
             if self._off_dirichlet():
-                initial_norm = self._dirichlet_step()
+                initial_norm, dirichlet_linear = self._dirichlet_step()
+                self.linear_monitor.add(dirichlet_linear)
                 extra = 1
             else:
                 self._residual(self.snes, self.x, self.b)
@@ -466,7 +468,7 @@ class NewtonSolver:
         finally:
             self.snes.setTolerances(*tolerances)
         iterations = self.snes.getIterationNumber() + extra
-        linear_iterations = self.snes.getLinearSolveIterations()
+        linear_iterations = self.snes.getLinearSolveIterations() + dirichlet_linear
         if on_pi:
             more, linear = self._finish_with_full_steps(iterations, target, FULL_STEPS_BELOW * initial_norm)
             iterations += more

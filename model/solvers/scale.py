@@ -11,7 +11,10 @@ the intended problem. Two checks, run by model.pipeline.run after build and befo
         J(0) du = -R(0; t1),   du = g(t1) on the Dirichlet dofs
 
     (J the problem's Jacobian form at u = 0, R its residual form; the mixed formulation solves for
-    (du, dp) together), by one LU factorisation (MUMPS). Its strain
+    (du, dp) together), by one LU factorisation (MUMPS) below linear.AUTO_DOFS unknowns and from there by the
+    `iterative` preset of model.solvers.linear (CG + GAMG with the rigid-body modes; FGMRES + the Schur
+    fieldsplit for the mixed formulation), so that the check costs about one Newton step of the run at any size
+    (LU would take longer than the whole iterative run on large meshes). Its strain
 
         strain = max over cells, and points of each cell, of max |eig(sym grad du)|
 
@@ -57,6 +60,7 @@ Dirichlet data) and a linear solve with PETSc (the solvers' business), and names
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import time
@@ -73,8 +77,10 @@ from petsc4py import PETSc
 import forms
 from model import compat
 from model.config import RunConfig
+from model.errors import ConfigError
 from model.fields.activation import activation_at
 from model.problem import ElasticityProblem
+from model.solvers import linear
 
 log = logging.getLogger(__name__)
 
@@ -82,6 +88,7 @@ log = logging.getLogger(__name__)
 STRAIN_LIMIT = 0.5
 #: the fibre stretch the tangent is taken at (fibre directions scaled by 1 + FIBRE_STRETCH; module docstring)
 FIBRE_STRETCH = 1e-9
+_prefixes = itertools.count()
 #: (lowest, highest) body size and modulus expected per unit system (module docstring)
 SIZE_BOUNDS = {"SI": (1e-4, 20.0), "mm-MPa": (0.1, 2e4)}
 MODULUS_BOUNDS = {"SI": (1.0, 1e10), "mm-MPa": (1e-6, 1e4)}
@@ -214,17 +221,61 @@ def _largest_strain(problem: ElasticityProblem, increment: fem.Function) -> floa
     return msh.comm.allreduce(local, op=MPI.MAX)
 
 
+def _linear_solver(problem: ElasticityProblem, A: PETSc.Mat) -> tuple[PETSc.KSP, Any]:
+    """A KSP for the check's solve with A (module docstring, (a)): MUMPS LU below linear.AUTO_DOFS unknowns,
+    else the iterative preset on its own options prefix; with the function that frees what it made."""
+    comm = problem.domain.mesh.comm
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(A)
+    imap = problem.space.dofmap.index_map
+    dofs = imap.size_global * problem.space.dofmap.index_map_bs
+    iterative = dofs >= linear.AUTO_DOFS
+    if comm.rank == 0:
+        log.debug("scale check: the %s preset's linear solve (%d dofs)", "iterative" if iterative else "direct", dofs)
+    if not iterative:
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("lu")
+        pc.setFactorSolverType("mumps")
+        return ksp, lambda: None
+    choice = linear.resolve(problem, "iterative")
+    prefix = f"scale_check{next(_prefixes)}_"
+    database = PETSc.Options()
+    for key, value in choice.options.items():
+        database[prefix + key] = value
+    made: list[Any] = []
+    if problem.formulation == "displacement":
+        modes = linear.vector_rigid_body_modes(problem.space)
+        null_space = PETSc.NullSpace().create(vectors=modes, comm=comm)
+        A.setNearNullSpace(null_space)
+        made += [null_space, *modes]
+    ksp.setOptionsPrefix(prefix)
+    ksp.setFromOptions()
+    if problem.formulation == "mixed":
+        fields = linear.MixedFields(problem)
+        fields.configure(ksp.getPC(), choice.options)
+        made.append(fields)
+
+    def release() -> None:
+        for key in choice.options:
+            database.delValue(prefix + key)
+        for obj in made:
+            obj.destroy()
+
+    return ksp, release
+
+
 def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | None:
     """The strain of du solving J(0) du = -R(0; t1) with du = g(t1) on the Dirichlet dofs (module docstring);
     None when the solve fails (a singular tangent, or a solution that does not satisfy the system).
     The problem is left as it was (solution, load factor)."""
-    comm = problem.domain.mesh.comm
     saved_solution = problem.solution.x.array.copy()
     saved_time = problem.time
     residual, jacobian = problem.forms
     fibres = problem.cell_fields.get("fibre_direction")
     saved_fibres = fibres.x.array.copy() if fibres is not None else None
     A = b = dx = ksp = None
+    release: Any = None
     try:
         if fibres is not None:  # every fibre stretch 1 + 1e-9: the fibre curves' tangent from the side of stretch
             fibres.x.array[:] *= 1.0 + FIBRE_STRETCH
@@ -240,12 +291,7 @@ def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | Non
         compat.apply_lifting(b, [jacobian], bcs=[bcs], x0=[x0], alpha=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         compat.set_bc(b, bcs, x0, -1.0)
-        ksp = PETSc.KSP().create(comm)
-        ksp.setOperators(A)
-        ksp.setType("preonly")
-        pc = ksp.getPC()
-        pc.setType("lu")
-        pc.setFactorSolverType("mumps")
+        ksp, release = _linear_solver(problem, A)
         dx = A.createVecRight()
         ksp.solve(b, dx)
         if ksp.getConvergedReason() < 0:
@@ -261,9 +307,11 @@ def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | Non
         compat.petsc_vector(increment).axpy(-1.0, dx)  # du = -dx (Newton's update x - dx from x = 0)
         increment.x.scatter_forward()
         return _largest_strain(problem, increment)
-    except PETSc.Error:
+    except (PETSc.Error, ConfigError):  # ConfigError: the mixed iterative preset needs every shear modulus
         return None
     finally:
+        if ksp is not None:
+            release()
         for obj in (ksp, A, b, dx):
             if obj is not None:
                 obj.destroy()
