@@ -162,7 +162,7 @@ def test_two_ranks_give_the_same_figures_and_messages() -> None:
 def test_iterative_solve_above_auto_dofs(name: str, monkeypatch: pytest.MonkeyPatch,
                                         caplog: pytest.LogCaptureFixture) -> None:
     # from linear.AUTO_DOFS unknowns the check solves with the iterative preset (LU would cost more than the
-    # whole iterative run on a large mesh): the same strain as LU, Taylor-Hood (Schur fieldsplit) and
+    # whole iterative run on a large mesh): the strain of LU, Taylor-Hood (Schur fieldsplit) and
     # displacement formulation (CG + GAMG) alike
     from model.solvers import linear
 
@@ -176,5 +176,6 @@ def test_iterative_solve_above_auto_dofs(name: str, monkeypatch: pytest.MonkeyPa
     if MPI.COMM_WORLD.rank == 0:  # logged on rank 0
         assert any("the iterative preset's linear solve" in r.getMessage() for r in caplog.records)
     assert lu.method == iterative.method == "linear solve"
-    assert iterative.first_increment_strain == pytest.approx(lu.first_increment_strain, rel=1e-6)
+    # the iterative solve stops at ksp_rtol 1e-4: the strain to about that
+    assert iterative.first_increment_strain == pytest.approx(lu.first_increment_strain, rel=1e-3)
     assert iterative.first_increment_strain > 0.0
