@@ -49,6 +49,9 @@ MUSCLE_SIZES = (0.006, 0.004, 0.003, 0.0022, 0.0017, 0.0014, 0.0012)
 CASES = ("p2_compressible", "th_0.49", "th_0.4999", "isometric")
 #: fits of time ~ dofs^k use the runs from this many dofs (below it set-up and Python overheads dominate)
 FIT_FROM = 50_000
+HEADER = ("| case | linear | ranks | n or size | dofs | Newton its | linear its per Newton it: mean (min-max) "
+          "| time to solution (s) | peak memory (MB, all ranks) | probes vs direct | status |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|")
 
 
 def bar(n: int, formulation: str, nu: float, linear: str) -> dict[str, Any]:
@@ -230,15 +233,21 @@ def main() -> None:
                         help="mesh sizes (m) of the isometric muscle")
     parser.add_argument("--out", type=Path, default=ROOT / "results" / "scaling")
     parser.add_argument("--plot", type=Path, default=None, help="log-log plot (PNG); default OUT/scaling.png")
+    parser.add_argument("--report", type=Path, nargs="+", metavar="JSON",
+                        help="run nothing: the tables and the plot of earlier runs' scaling.json files")
     args = parser.parse_args()
     if args.child:
         child(*args.child)
         return
+    if args.report:
+        rows = [r for path in args.report for r in json.loads(path.read_text())]
+        print(HEADER)
+        print("\n".join(row(r) for r in rows))
+        report(rows, args.plot or args.report[0].with_suffix(".png"))
+        return
     args.out.mkdir(parents=True, exist_ok=True)
-    rows: list[dict[str, Any]] = []
-    print("| case | linear | ranks | n or size | dofs | Newton its | linear its per Newton it: mean (min-max) "
-          "| time to solution (s) | peak memory (MB, all ranks) | probes vs direct | status |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|", flush=True)
+    rows = []
+    print(HEADER, flush=True)
     for case in args.cases.split(","):
         for ranks in args.ranks:
             direct: dict[float, dict[str, Any]] = {}
@@ -256,6 +265,11 @@ def main() -> None:
                     (args.out / "scaling.json").write_text(json.dumps(rows, indent=1))
                     if not _good(r) or r.get("dofs", 0) >= args.max_dofs:
                         break
+    report(rows, args.plot or args.out / "scaling.png")
+
+
+def report(rows: list[dict[str, Any]], plot_path: Path) -> None:
+    """The fitted exponents, the 1-rank / 2-rank ratios and the plot."""
     print("\n| case | linear | ranks | k (time ~ dofs^k), from 5e4 dofs | k, all sizes | largest dofs solved |")
     print("|---|---|---|---|---|---|")
     for key, series in _series(rows).items():
@@ -273,7 +287,7 @@ def main() -> None:
         for r in two:
             print(f"| {r['case']} | {r['linear']} | {r['dofs']} | "
                   f"{one[(r['case'], r['linear'], r['size'])]['wall'] / r['wall']:.2f} |")
-    plot(rows, args.plot or args.out / "scaling.png")
+    plot(rows, plot_path)
 
 
 if __name__ == "__main__":

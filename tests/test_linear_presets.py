@@ -110,14 +110,17 @@ def mean_iterations(summary: dict[str, Any]) -> float:
 
 def test_taylor_hood_iterations_do_not_grow(shared_tmp: Path) -> None:
     """Linear iterations per Newton iteration (ksp_rtol 1e-8, the preset's): refining the mesh once (at nu 0.3 and
-    at 0.4999) or going from nu 0.3 to 0.4999 (on either mesh) changes them by less than 30 %."""
+    at 0.4999) or going from nu 0.3 to 0.4999 (on either mesh) changes them by less than 30 %. Bars of 6 x 3 x 3
+    and 12 x 6 x 6 boxes (2 200 and 13 300 dofs): on the 4 x 2 x 2 bar, pre-asymptotic, PETSc 3.22's GAMG needs 42 %
+    more iterations after one refinement (3.18: 24 %); measured means, 3.18 / 3.22: 30.0 / 31.8, 34.0 / 36.5,
+    35.5 / 37.0, 42.5 / 46.5."""
     counts = {}
-    for n, nu in ((2, 0.3), (4, 0.3), (2, 0.4999), (4, 0.4999)):
+    for n, nu in ((3, 0.3), (6, 0.3), (3, 0.4999), (6, 0.4999)):
         summary = run_raw(quiet(bar(n, nu), "iterative", steps=1), shared_tmp / f"{n}_{nu}")
         assert summary["status"] == "completed"
         counts[n, nu] = mean_iterations(summary)
     assert min(counts.values()) > 3, counts  # a real iteration, not a direct solve in disguise
-    pairs = [((2, nu), (4, nu)) for nu in (0.3, 0.4999)] + [((n, 0.3), (n, 0.4999)) for n in (2, 4)]
+    pairs = [((3, nu), (6, nu)) for nu in (0.3, 0.4999)] + [((n, 0.3), (n, 0.4999)) for n in (3, 6)]
     for a, b in pairs:
         assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < 1.3, (a, b, counts)
 

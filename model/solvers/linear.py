@@ -62,18 +62,18 @@ AUTO_DOFS = 50_000
 FIELDS = ("u", "p")
 
 DIRECT: Options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-#: displacement formulation: CG + GAMG (the matrix carries the rigid-body modes as near null space). Threshold
-#: 0.02 (drop weak couplings from the aggregation graph) takes 10-20 % fewer iterations than 0 and keeps their
-#: growth with the mesh and with nu within 30 % on both PETSc releases; reusing the interpolation across Newton
-#: iterations leaves the iterations as they are and skips the aggregation in every set-up after the first
-#: (docs/solvers.md, "Iterative presets: tuning")
+#: displacement formulation: CG + GAMG (the matrix carries the rigid-body modes as near null space). Threshold 0
+#: (every coupling in the aggregation graph; 0.02 takes 10-20 % fewer iterations but makes the coarse levels'
+#: Galerkin products twice as costly on P2: slower from about 1e5 dofs); the interpolation is reused across
+#: Newton iterations (the same iterations, no aggregation in the set-ups after the first). docs/solvers.md,
+#: "Iterative presets: tuning".
 ITERATIVE_DISPLACEMENT: Options = {
     "ksp_type": "cg",
     "ksp_rtol": 1e-8,
     "ksp_max_it": 1000,
     "pc_type": "gamg",
     "pc_gamg_type": "agg",
-    "pc_gamg_threshold": 0.02,
+    "pc_gamg_threshold": 0.0,
     "pc_gamg_reuse_interpolation": True,
     "mg_levels_ksp_type": "chebyshev",
     "mg_levels_pc_type": "jacobi",
@@ -92,7 +92,7 @@ ITERATIVE_MIXED: Options = {
     "fieldsplit_u_ksp_type": "preonly",
     "fieldsplit_u_pc_type": "gamg",
     "fieldsplit_u_pc_gamg_type": "agg",
-    "fieldsplit_u_pc_gamg_threshold": 0.02,
+    "fieldsplit_u_pc_gamg_threshold": 0.0,
     "fieldsplit_u_pc_gamg_reuse_interpolation": True,
     "fieldsplit_u_mg_levels_ksp_type": "chebyshev",
     "fieldsplit_u_mg_levels_pc_type": "jacobi",

@@ -1,0 +1,44 @@
+"""benchmarks/scaling.py on the smallest sizes: its children run, the table has every figure, the direct and
+iterative presets agree, and the log-log plot is written (the script asserts nothing itself; its measured
+table is in docs/solvers.md). It starts its own processes (mpirun for 2 ranks), so it runs serially only.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from conftest import ROOT, serial_only
+
+
+@serial_only
+def test_scaling_benchmark_smallest_sizes(tmp_path: Path) -> None:
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "scaling.py"), "--cases", "p2_compressible,th_0.4999",
+         "--bar-sizes", "2", "3", "--ranks", "1", "2", "--limit", "300", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=900, env=env, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-2000:]
+    rows = json.loads((tmp_path / "scaling.json").read_text())
+    assert len(rows) == 2 * 2 * 2 * 2  # cases x ranks x presets x sizes
+    for r in rows:
+        assert r["status"] == "completed", r
+        assert r["dofs"] > 0 and r["wall"] > 0 and r["peak_mb"] > 100 and r["newton"] >= 2, r
+        counts = r["linear_per_newton"]
+        assert len(counts) == r["newton"], r  # one count per Newton iteration
+        if r["linear"] == "iterative":
+            assert min(counts) > 1, r  # a Krylov method, not LU
+            assert r["vs_direct"] < 1e-8, r
+        else:
+            assert set(counts) == {1}, r
+    # the same problem on 1 and 2 ranks: the same dofs
+    by_key = {(r["case"], r["linear"], r["size"], r["ranks"]): r["dofs"] for r in rows}
+    assert all(by_key[c, lin, s, 1] == by_key[c, lin, s, 2] for c, lin, s, _ in by_key)
+    out = done.stdout
+    assert "| th_0.4999 | iterative | 1 rank(s) |" in out and "time 1 rank / 2 ranks" in out
+    assert (tmp_path / "scaling.png").stat().st_size > 10_000
+    assert not any(math.isnan(r["peak_mb"]) for r in rows)
