@@ -228,6 +228,14 @@ def vector_rigid_body_modes(space: fem.FunctionSpace) -> list[PETSc.Vec]:
     return vectors
 
 
+def rigid_body_modes(problem: ElasticityProblem) -> PETSc.NullSpace:
+    """The six rigid-body modes of a displacement space, orthonormalised (a near null space for GAMG; the mixed
+    formulation's u block gets them through model.solvers.linear.MixedFields)."""
+    if problem.formulation != "displacement":
+        raise ValueError("rigid-body modes: only for the displacement formulation")
+    return PETSc.NullSpace().create(vectors=vector_rigid_body_modes(problem.space), comm=problem.space.mesh.comm)
+
+
 class MixedFields:
     """The u and p index sets of a mixed (Taylor-Hood) problem, the u block's near null space and the Schur
     preconditioner's weighted pressure mass matrix Sp = - sum_r int (1/mu_r + 1/kappa_r) p q dx_r."""

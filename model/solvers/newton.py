@@ -255,14 +255,6 @@ def residual_location(problem: ElasticityProblem, residual: PETSc.Vec) -> Residu
                             tuple(sorted(regions)), tuple(sorted(boundaries)))
 
 
-def rigid_body_modes(problem: ElasticityProblem) -> PETSc.NullSpace:
-    """The six rigid-body modes of a displacement space, orthonormalised (a near null space for GAMG; the mixed
-    formulation's u block gets them through model.solvers.linear.MixedFields)."""
-    if problem.formulation != "displacement":
-        raise ValueError("rigid-body modes: only for the displacement formulation")
-    return PETSc.NullSpace().create(vectors=linear.vector_rigid_body_modes(problem.space), comm=problem.space.mesh.comm)
-
-
 class NewtonSolver:
     """SNES on the residual and Jacobian forms of a problem, with a unique options prefix.
 
@@ -296,7 +288,7 @@ class NewtonSolver:
         self.A = fem_petsc.create_matrix(self.jacobian_form)
         self.near_null_space = None
         if problem.formulation == "displacement":
-            self.near_null_space = rigid_body_modes(problem)
+            self.near_null_space = linear.rigid_body_modes(problem)
             self.A.setNearNullSpace(self.near_null_space)
         self.x = compat.petsc_vector(problem.solution).copy()
         self.snes = PETSc.SNES().create(comm)

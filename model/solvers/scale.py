@@ -252,10 +252,9 @@ def _linear_solver(problem: ElasticityProblem, A: PETSc.Mat) -> tuple[PETSc.KSP,
         database[prefix + key] = value
     made: list[Any] = []
     if problem.formulation == "displacement":
-        modes = linear.vector_rigid_body_modes(problem.space)
-        null_space = PETSc.NullSpace().create(vectors=modes, comm=comm)
+        null_space = linear.rigid_body_modes(problem)
         A.setNearNullSpace(null_space)
-        made += [null_space, *modes]
+        made.append(null_space)
     ksp.setOptionsPrefix(prefix)
     ksp.setFromOptions()
     if problem.formulation == "mixed":
