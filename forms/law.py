@@ -29,6 +29,7 @@ import math
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
+import numpy as np
 import ufl
 
 Expr = ufl.core.expr.Expr
@@ -152,6 +153,16 @@ class Law(ABC):
             self.require_compressible("stress dpsi/dF without a pressure field")
             p = self.bulk_penalty * g
         return self.reduced_stress(F, R) + p * ufl.diff(g, Fv)
+
+    def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """(N,) bool: True where A = dP/dF does not exist at the numpy F (N,3,3): a breakpoint of a
+        piecewise curve of the law, or a rotation that is not unique; within a relative 1e-8.
+
+        ``fields`` are numpy arrays per sample (S (N,3,3), a0 (N,3), s0 (N,3), alpha (N,)). Laws with
+        such points override this; psi and P are still defined there (verify avoids these samples when
+        it emits them, and leaves A out of a check there, with a count).
+        """
+        return np.zeros(len(np.reshape(F, (-1, 3, 3))), dtype=bool)
 
     def parameters(self) -> dict[str, float]:
         """Every parameter of the law, by name."""

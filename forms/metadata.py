@@ -30,7 +30,11 @@ FIELD_MEANINGS: dict[str, str] = {
     "S": "shape target: a symmetric positive definite 3x3 matrix per cell (dimensionless)",
     "a0": "unit fibre direction in the reference configuration (a 3-vector per cell)",
     "alpha": "activation in [0, 1] (dimensionless, per cell, a function of time)",
+    "s0": "unit sheet direction in the reference configuration, orthogonal to a0 (a 3-vector per cell)",
 }
+
+#: The value shape of each field per cell (sample): a 3x3 matrix, a 3-vector or a scalar.
+FIELD_SHAPES: dict[str, tuple[int, ...]] = {"S": (3, 3), "a0": (3,), "alpha": (), "s0": (3,)}
 
 
 def format_number(value: Any) -> str:
@@ -214,4 +218,4 @@ def laws_markdown(entries: Iterable[LawEntry], level: int = 2, intro: str = "") 
     return text + "\n".join(entry.markdown(level + 1) for entry in entries)
 
 
-__all__ = ["FIELD_MEANINGS", "LawEntry", "Parameter", "format_number", "laws_markdown"]
+__all__ = ["FIELD_MEANINGS", "FIELD_SHAPES", "LawEntry", "Parameter", "format_number", "laws_markdown"]
