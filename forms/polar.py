@@ -115,16 +115,36 @@ def linearised_rotation(M: ufl.core.expr.Expr, R0: ufl.core.expr.Expr) -> ufl.co
     ||M - R||^2 only at second order (R0^T M symmetric: the first-order term vanishes).
     """
     A = R0.T * M
+    w = 2.0 * _solve_K(A, axial(ufl.skew(A)))
+    return R0 * (ufl.Identity(3) + skew_matrix(w))
+
+
+def _solve_K(A: ufl.core.expr.Expr, b: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """K^-1 b with K = tr(H) I - H, H = sym(A), or 0 where K is singular (linearised_rotation's test)."""
     H = ufl.sym(A)
     K = ufl.tr(H) * ufl.Identity(3) - H
     trK = ufl.tr(K)
     I2 = 0.5 * (trK**2 - ufl.inner(K, K))
     detK = ufl.det(K)
     regular = ufl.gt(detK, SINGULAR_K * trK * I2)
-    safe_det = ufl.conditional(regular, detK, 1.0)
-    adjugate = _adjugate(K)
-    w = ufl.conditional(regular, 2.0 / safe_det, 0.0) * (adjugate * axial(ufl.skew(A)))
-    return R0 * (ufl.Identity(3) + skew_matrix(w))
+    return ufl.conditional(regular, 1.0 / ufl.conditional(regular, detK, 1.0), 0.0) * (_adjugate(K) * b)
+
+
+def rotation_stress(M: ufl.core.expr.Expr, R: ufl.core.expr.Expr, G: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+    """d(G : R*(M))/dM at fixed G: the part of dpsi/dM that comes through the rotation R* = polar(M).
+
+    With dR = R [dw]x, dw = 2 K^-1 axial(skew(R^T dM)) (module docstring) and the identity
+    A : [v]x = 2 axial(skew A) . v,
+
+        G : dR = g . dw = 2 (K^-1 g) . axial(skew(R^T dM)) = (R [a]x) : dM,
+        g = 2 axial(skew(R^T G)),  a = K^-1 g,   so  d(G : R)/dM = R [a]x.
+
+    ``R`` is the linearised rotation (value polar(M), exact first derivative), so UFL's derivative
+    of this expression is exact too (it is an explicit function of M and R). Where K is singular
+    (the rotation is not unique: no derivative exists) a = 0, as in linearised_rotation.
+    """
+    a = _solve_K(R.T * M, 2.0 * axial(ufl.skew(R.T * G)))
+    return R * skew_matrix(a)
 
 
 def _adjugate(K: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
