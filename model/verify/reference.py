@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation
 import forms
 from forms.law import Law
 from model import compat
+from model.fields.eigen import EigenField
 from model.fields.polar import PolarField
 
 QUANTITIES = ("psi", "P", "A")
@@ -72,6 +73,11 @@ class ReferenceEvaluator:
             extra["alpha"] = self.fields["alpha"]
         self.law: Law = entry.make(**extra, **params)
         Fv = ufl.variable(self.F)
+        self.eigen = None
+        if getattr(self.law, "needs_eigenbasis", False):  # per-point eigen state (forms.ogden)
+            self.eigen = EigenField(self.mesh, self.law.spectral_argument(Fv), 1,  # type: ignore[attr-defined]
+                                    self.law.spectral_derivatives)  # type: ignore[attr-defined]
+            self.law = self.law.with_eigenbasis(self.eigen.Q0, self.eigen.D)  # type: ignore[attr-defined]
         R = None
         self.polar = None
         if self.law.needs_rotation:
@@ -99,6 +105,8 @@ class ReferenceEvaluator:
             self._set(function, fields[name])
         if self.polar is not None:
             self.polar.update()
+        if self.eigen is not None:
+            self.eigen.update()
         inverse = np.empty_like(self.order)
         inverse[self.order] = np.arange(self.num_samples)
         out = {}
