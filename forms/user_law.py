@@ -180,11 +180,13 @@ class UserLaw(Law):
         return ufl.diff(W, Fv) + through_rotation
 
     def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
-        """With a rotation: where it is not unique (forms.polar.rotation_not_unique of M = F or F S)."""
+        """With a rotation: where it is not unique (forms.polar.rotation_not_unique of M = F, or F S with the
+        field ``S`` (N,3,3))."""
         F = np.asarray(F, dtype=np.float64).reshape(-1, 3, 3)
         if self.rotation is None:
             return super().tangent_undefined(F, **fields)
-        M = F @ np.asarray(fields["S"], dtype=np.float64).reshape(-1, 3, 3) if self.rotation == "F S" else F
+        S = fields.get("S") if self.rotation == "F S" else None
+        M = F if S is None else F @ np.asarray(S, dtype=np.float64).reshape(-1, 3, 3)
         return rotation_not_unique(M)
 
     def volume_constraint(self, F: Expr) -> Expr:

@@ -90,6 +90,9 @@ def test_user_shape_target_rotation_of_F_S(tmp_path: Path) -> None:
     built = ReferenceEvaluator("shape_target", {"mu": 1.3, "kappa": 0.0}, len(F)).evaluate(F, S=S)
     for q in ("psi", "P", "A"):
         _close(user[q], built[q], 1e-12)
+    law = resolve_law(spec).make(mu=1.3)
+    flat = np.array([np.diag([1.0, 1.0, -1.0]) @ np.linalg.inv(S[0]), np.eye(3)])  # F S = diag(1, 1, -1); S
+    np.testing.assert_array_equal(law.tangent_undefined(flat, S=S[:2]), [True, False])
 
 
 def _numpy_energy(F: np.ndarray, c: float) -> float:
