@@ -69,6 +69,9 @@ from model.verify.seeds.thesis import (
     TET,
     OneCell,
     _element_rows,
+    _euler_rows,
+    _membrane_rows,
+    _spring_rows,
     _thesis_muscle_rows,
     _thesis_rows,
     fibre_stretch_np,
@@ -101,6 +104,7 @@ def seed_rows(include_inverted: bool = True) -> list[SeedRow]:
     rows += _thesis_rows(F, stvk_ref)
     rows += _thesis_muscle_rows()
     rows += _element_rows()
+    rows += _spring_rows() + _membrane_rows() + _euler_rows()
     return rows
 
 

@@ -542,3 +542,320 @@ def _element_rows() -> list[SeedRow]:
                          f"{checks[1].max_rel_error:.1e}) agree with dolfinx on one tet: G = P B_m (B_m from Irving's "
                          f"area-weighted normals) = -residual, (dP/dF B_m) dF/dq = -Jacobian; {hand}"))
     return rows
+
+
+# --- thesis eqs. 4.13-4.15: spring constraints (section 4.3.4.1) -------------------------------------------------
+
+#: spring stiffness k_s (eq. 4.13)
+SPRING_KS = 2.5
+SPRING_SOURCE = "eq. {} (sec. 4.3.4.1 Springs view, p. 76)"
+
+
+def thesis_eq4_13_energy(q: np.ndarray, r: np.ndarray, ks: float) -> np.ndarray:
+    """Thesis eq. 4.13, as printed: W(q) = k_s ||q| - r|^2, q = x_b - x_a the spring vector, r its rest length
+    (r = 0: the zero-length springs of the penalty collisions)."""
+    return ks * np.abs(np.linalg.norm(q, axis=-1) - r) ** 2
+
+
+def thesis_eq4_14_force(q: np.ndarray, r: np.ndarray, ks: float) -> np.ndarray:
+    """Thesis eq. 4.14, as printed: f(q) = k_s (|q| - r) q/|q|, "the Jacobian of the energy" (dW/dq: no minus sign;
+    the force on the end x_b is -f, on x_a +f)."""
+    L = np.linalg.norm(q, axis=-1)
+    return (ks * (L - r) / L)[:, None] * q
+
+
+def thesis_eq4_14_corrected(q: np.ndarray, r: np.ndarray, ks: float) -> np.ndarray:
+    """dW/dq of eq. 4.13: 2 k_s (|q| - r) q/|q| (or eq. 4.14 as printed with W = (k_s/2)(|q| - r)^2)."""
+    return 2.0 * thesis_eq4_14_force(q, r, ks)
+
+
+def thesis_eq4_15_hessian(q: np.ndarray, r: np.ndarray, ks: float) -> np.ndarray:
+    """Thesis eq. 4.15, as printed: df/dq = k_s [(1 - r/|q|) I + r/|q| q q^T] (the parenthesis "(|q|)" read as |q|)."""
+    L = np.linalg.norm(q, axis=-1)
+    return ks * ((1.0 - r / L)[:, None, None] * I3 + (r / L)[:, None, None] * np.einsum("ni,nj->nij", q, q))
+
+
+def thesis_eq4_15_corrected(q: np.ndarray, r: np.ndarray, ks: float) -> np.ndarray:
+    """d2W/dq2 of eq. 4.13: 2 k_s [(1 - r/|q|) I + r/|q|^3 q q^T]."""
+    L = np.linalg.norm(q, axis=-1)
+    return 2.0 * ks * ((1.0 - r / L)[:, None, None] * I3
+                       + (r / L**3)[:, None, None] * np.einsum("ni,nj->nij", q, q))
+
+
+def spring_on_ends(gradient: np.ndarray, hessian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """dW/dq and d2W/dq2 carried to the end points X = (x_a, x_b), q = x_b - x_a: (-g, g) and [[H, -H], [-H, H]]."""
+    return (np.concatenate([-gradient, gradient], axis=1),
+            np.block([[hessian, -hessian], [-hessian, hessian]]))
+
+
+def spring_samples(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """n springs: end points (n, 2, 3) and rest lengths (n,): the first third zero-length, then springs stretched
+    and compressed (|q|/r from 0.2 to 3), a few at |q| = r."""
+    rng = np.random.default_rng(seed)
+    ends = rng.standard_normal((n, 2, 3))
+    L = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    ratio = np.exp(rng.uniform(np.log(0.2), np.log(3.0), n))
+    ratio[-3:] = 1.0
+    r = L / ratio
+    r[: n // 3] = 0.0
+    return ends, r
+
+
+def _spring_rows() -> list[SeedRow]:
+    from model.verify.seeds.thesis_reference import SpringReference
+
+    ks = SPRING_KS
+    ends, r = spring_samples(SAMPLES, SEED + 4)
+    ref = SpringReference(SAMPLES, ks).evaluate(ends, r)
+    q = ends[:, 1] - ends[:, 0]
+    n_zero = int(np.sum(r == 0.0))
+    src = f"{THESIS} " + SPRING_SOURCE
+    where = (f"{SAMPLES} springs ({n_zero} zero-length), |q|/r in 0.2-3, reference dW/dX, d2W/dX2 by ufl.diff of "
+             "eq. 4.13 with respect to the end points X = (x_a, x_b)")
+    rows = [_row("thesis-eq4.13", src.format("4.13"), _check({"psi": thesis_eq4_13_energy(q, r, ks)}, ref),
+                 f"agrees: W = k_s (|q| - r)^2 is the potential the reference differentiates; {where}")]
+    g_printed, _ = spring_on_ends(thesis_eq4_14_force(q, r, ks), np.zeros((SAMPLES, 3, 3)))
+    half = _check({"P": 2.0 * g_printed}, ref)[0]
+    rows.append(_row("thesis-eq4.14", src.format("4.14"), _check({"P": g_printed}, ref),
+                     "f = k_s (|q| - r) q/|q| is half of dW/dq of eq. 4.13 (twice it agrees, rel "
+                     f"{half.max_rel_error:.1e}): the factor 2 is missing, or eq. 4.13 needs k_s/2"))
+    rows.append(_row("thesis-eq4.14-corrected", src.format("4.14"),
+                     _check({"P": spring_on_ends(thesis_eq4_14_corrected(q, r, ks), np.zeros((SAMPLES, 3, 3)))[0]},
+                            ref), "f = dW/dq = 2 k_s (|q| - r) q/|q| (-f on x_a, +f on x_b)"))
+    _, H_printed = spring_on_ends(q, thesis_eq4_15_hessian(q, r, ks))
+    _, H_of_eq4_14 = spring_on_ends(q, 0.5 * thesis_eq4_15_corrected(q, r, ks))
+    vs_eq4_14 = _check({"A": H_printed}, {"A": H_of_eq4_14})[0]
+    zero = r == 0.0
+    at_zero = _check({"A": 2.0 * H_printed[zero]}, {"A": ref["A"][zero]})[0]
+    rows.append(_row("thesis-eq4.15", src.format("4.15"), _check({"A": H_printed}, ref),
+                     "r/|q| q q^T must be r/|q|^3 q q^T (q/|q| q^T/|q|), and the factor 2 of eq. 4.14 is missing: "
+                     f"eq. 4.15 is not even the derivative of eq. 4.14 (rel {vs_eq4_14.max_rel_error:.1e}); right "
+                     f"up to the factor 2 only for zero-length springs (2x eq. 4.15 at r = 0: rel "
+                     f"{at_zero.max_rel_error:.1e})"))
+    rows.append(_row("thesis-eq4.15-corrected", src.format("4.15"),
+                     _check({"A": spring_on_ends(q, thesis_eq4_15_corrected(q, r, ks))[1]}, ref),
+                     "d2W/dq2 = 2 k_s [(1 - r/|q|) I + r/|q|^3 q q^T] ([[H, -H], [-H, H]] on the end points)"))
+    return rows
+
+
+# --- thesis section 3.3.3.1: the inflating membrane (elastic model and forces) ----------------------------------
+
+MEMBRANE_SOURCE = "sec. 3.3.3.1 Elastic Model and Forces, p. 49"
+#: the membrane's Young's modulus E, Poisson ratio nu, thickness h, and the base pressure p
+MEMBRANE_Y, MEMBRANE_NU, MEMBRANE_THICKNESS, MEMBRANE_PRESSURE = 3.0, 0.3, 0.02, 0.7
+#: the one rest triangle (in 3D, not in a coordinate plane)
+TRIANGLE = np.array([[0.1, -0.05, 0.2], [1.1, 0.2, 0.1], [0.3, 0.9, 0.5]])
+#: the closed surface of the tetrahedron TET: its faces, each oriented outward (x_b - x_a) x (x_c - x_a)
+TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+
+
+def membrane_material_coords(X: np.ndarray) -> np.ndarray:
+    """"At the initialization stage, 2D material space coordinates are calculated for each element": the rest
+    triangle X (3, 3) laid flat isometrically, (u, v) of its nodes (3, 2), u along X_2 - X_1, v in its plane."""
+    e1 = (X[1] - X[0]) / np.linalg.norm(X[1] - X[0])
+    n = np.cross(X[1] - X[0], X[2] - X[0])
+    e2 = np.cross(n / np.linalg.norm(n), e1)
+    return np.stack([(X - X[0]) @ e1, (X - X[0]) @ e2], axis=1)
+
+
+def _membrane_Dm(Xbar: np.ndarray) -> np.ndarray:
+    """[[xb2 - xb1, xb3 - xb1], [yb2 - yb1, yb3 - yb1]] of the printed F."""
+    return (Xbar[1:] - Xbar[0]).T
+
+
+def thesis_membrane_F(x: np.ndarray, Xbar: np.ndarray) -> np.ndarray:
+    """Sec. 3.3.3.1, as printed: F (3x2) = [x2 - x1, x3 - x1] [[xb2 - xb1, xb3 - xb1], [yb2 - yb1, yb3 - yb1]]^-1,
+    x (n, 3 nodes, 3) the deformed nodes, Xbar (3, 2) the material coordinates."""
+    Ds = np.swapaxes(x[:, 1:] - x[:, :1], 1, 2)  # (n, 3, 2)
+    return Ds @ np.linalg.inv(_membrane_Dm(Xbar))
+
+
+def thesis_membrane_B(young: float, nu: float) -> np.ndarray:
+    """The printed 3x3 B: E/(1 - nu^2) [[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu)/2]]."""
+    c = young / (1.0 - nu**2)
+    return c * np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, 0.5 * (1.0 - nu)]])
+
+
+#: Voigt vector (11, 22, 12) <-> symmetric 2x2 tensor: VOIGT[a, i, j] = 1 where (i, j) is the a-th component
+VOIGT = np.zeros((3, 2, 2))
+VOIGT[0, 0, 0] = VOIGT[1, 1, 1] = VOIGT[2, 0, 1] = VOIGT[2, 1, 0] = 1.0
+#: engineering shear: the strain in Voigt form is (G11, G22, 2 G12)
+STRAIN_SCALE = np.array([1.0, 1.0, 2.0])
+
+
+def thesis_membrane_stress(F: np.ndarray, young: float, nu: float) -> tuple[np.ndarray, np.ndarray]:
+    """(G (n, 2, 2), sigma (n, 3)): G = (C - I)/2, C = F^T F; sigma = B eps with eps = (G11, G22, 2 G12), the usual
+    Voigt strain (engineering shear; the reading that makes b33 = E/(1 - nu^2)(1 - nu)/2 the shear modulus)."""
+    G = 0.5 * (_T(F) @ F - np.eye(2))
+    eps = STRAIN_SCALE * np.stack([G[:, 0, 0], G[:, 1, 1], G[:, 0, 1]], axis=1)
+    return G, eps @ thesis_membrane_B(young, nu).T
+
+
+def thesis_membrane_energy(x: np.ndarray, Xbar: np.ndarray, young: float, nu: float, thickness: float) -> np.ndarray:
+    """Sec. 3.3.3.1, as printed: E_e = int_Ve 1/2 (G:B:G) dv = 1/2 (G:sigma) A_e h, G:sigma the tensor contraction
+    (G11 s11 + G22 s22 + 2 G12 s12 = eps . sigma), A_e = |det Dm|/2 the undeformed area."""
+    G, sigma = thesis_membrane_stress(thesis_membrane_F(x, Xbar), young, nu)
+    area = 0.5 * abs(np.linalg.det(_membrane_Dm(Xbar)))
+    return 0.5 * np.einsum("nij,aij,na->n", G, VOIGT, sigma) * area * thickness
+
+
+def _membrane_dFdx(Xbar: np.ndarray) -> np.ndarray:
+    """dF_ij/dx_(a, k) = delta_ik D[a, j]: D (3 nodes, 2), rows 2, 3 = Dm^-1 rows, row 1 minus their sum."""
+    Dinv = np.linalg.inv(_membrane_Dm(Xbar))
+    return np.concatenate([-Dinv.sum(axis=0, keepdims=True), Dinv], axis=0)
+
+
+def thesis_membrane_forces(x: np.ndarray, Xbar: np.ndarray, young: float, nu: float,
+                           thickness: float) -> np.ndarray:
+    """-grad_x E_e ("obtained by analytical derivation", not printed): with psi = 1/2 G:sigma, dpsi/dF = F S,
+    S the 2x2 tensor of sigma (s12 off the diagonal): f_a = -A_e h (F S) D[a] (n, 3 nodes, 3)."""
+    F = thesis_membrane_F(x, Xbar)
+    _, sigma = thesis_membrane_stress(F, young, nu)
+    S = np.einsum("na,aij->nij", sigma, VOIGT)
+    area = 0.5 * abs(np.linalg.det(_membrane_Dm(Xbar)))
+    return -area * thickness * np.einsum("nij,aj->nai", F @ S, _membrane_dFdx(Xbar))
+
+
+def thesis_membrane_hessian(x: np.ndarray, Xbar: np.ndarray, young: float, nu: float,
+                            thickness: float) -> np.ndarray:
+    """-grad_x grad_x E_e (n, 9, 9), (node, component) order: dP_ij/dF_kl = delta_ik S_jl + F_im dS_mj/dF_kl,
+    dS = VOIGT^T B (STRAIN_SCALE deps), dG_mj/dF_kl = (delta_jl F_km + delta_ml F_kj)/2."""
+    F = thesis_membrane_F(x, Xbar)
+    _, sigma = thesis_membrane_stress(F, young, nu)
+    S = np.einsum("na,aij->nij", sigma, VOIGT)
+    I2 = np.eye(2)
+    dG = 0.5 * (np.einsum("jl,nkm->nmjkl", I2, F) + np.einsum("ml,nkj->nmjkl", I2, F))  # dG_mj/dF_kl
+    deps = STRAIN_SCALE[None, :, None, None] * dG[:, [0, 1, 0], [0, 1, 1]]  # d(G11, G22, 2 G12)/dF_kl
+    dsigma = np.einsum("ab,nbkl->nakl", thesis_membrane_B(young, nu), deps)
+    dS = np.einsum("nakl,amj->nmjkl", dsigma, VOIGT)
+    dP = np.einsum("ik,njl->nijkl", I3, S) + np.einsum("nim,nmjkl->nijkl", F, dS)
+    D = _membrane_dFdx(Xbar)
+    area = 0.5 * abs(np.linalg.det(_membrane_Dm(Xbar)))
+    return -area * thickness * np.einsum("nijkl,aj,bl->naibk", dP, D, D).reshape(len(x), 9, 9)
+
+
+def thesis_membrane_pressure(x: np.ndarray, faces: np.ndarray, p: float, unit_area: bool = True) -> np.ndarray:
+    """Sec. 3.3.3.1, as printed: f_i = sum over the triangles j around vertex i of 1/3 p_i A_j n_j, "a unit area
+    A_j for all triangles is used" (``unit_area``; False: A_j the deformed area), n_j the unit normal of the
+    deformed triangle (outward: faces ordered so), p_i = p at every vertex. x (n, vertices, 3) -> (n, vertices, 3)."""
+    f = np.zeros_like(x)
+    for face in faces:
+        c = np.cross(x[:, face[1]] - x[:, face[0]], x[:, face[2]] - x[:, face[0]])
+        area = 0.5 * np.linalg.norm(c, axis=1)
+        normal = 0.5 * c / area[:, None]
+        A = np.ones_like(area) if unit_area else area
+        for i in face:
+            f[:, i] += (p * A / 3.0)[:, None] * normal
+    return f
+
+
+def _membrane_rows() -> list[SeedRow]:
+    from model.verify.seeds.thesis_reference import MembraneTriangle, PressureSurface
+
+    Y, nu, h, p = MEMBRANE_Y, MEMBRANE_NU, MEMBRANE_THICKNESS, MEMBRANE_PRESSURE
+    F3, _ = deformation_samples(ELEMENT_SAMPLES, SEED + 2)
+    rng = np.random.default_rng(SEED + 2)
+    x = np.einsum("nij,aj->nai", F3, TRIANGLE) + 0.05 * rng.standard_normal((ELEMENT_SAMPLES, 3, 3))
+    Xbar = membrane_material_coords(TRIANGLE)
+    cell = MembraneTriangle(TRIANGLE, Y, nu, h)
+    values = [cell.evaluate(xn) for xn in x]
+    ref = {"psi": np.array([v[0] for v in values]), "P": np.array([v[1] for v in values]),
+           "A": np.array([v[2] for v in values])}
+    F = thesis_membrane_F(x, Xbar)
+    src = f"{THESIS} " + MEMBRANE_SOURCE
+    how = (f"one triangle in 3D, {ELEMENT_SAMPLES} deformations; dolfinx manifold mesh (gdim 3, tdim 2), F = grad(phi) "
+           "[t1 t2], E = (F^T F - I2)/2, psi = mu E:E + (lambda'/2)(tr E)^2, lambda' = E nu/(1 - nu^2)")
+    b_check = _check({"P": F @ _T(F)}, {"P": np.array([v[3] for v in values])})
+    rows = [_row("thesis-sec3.3.3.1-F", src + ", F", b_check,
+                 "agrees: F = [x2 - x1, x3 - x1] Dm^-1 (3x2) in the flattened material coordinates; compared as F F^T "
+                 "(independent of the in-plane material frame) with dolfinx's grad(phi) [t1 t2]")]
+    energy = _check({"psi": thesis_membrane_energy(x, Xbar, Y, nu, h)}, ref)
+    rows.append(_row("thesis-sec3.3.3.1-energy", src + ", B and E_e", energy,
+                     "agrees: 1/2 (G:sigma) A_e h with sigma = B eps, eps = (G11, G22, 2 G12) (Voigt, engineering "
+                     f"shear) is the plane-stress StVK membrane energy; {how}"))
+    forces = _check({"P": -thesis_membrane_forces(x, Xbar, Y, nu, h).reshape(-1, 9)}, ref)
+    rows.append(_row("thesis-sec3.3.3.1-forces", src + ", -grad_x E_stretch", forces,
+                     "agrees: -grad_x E_e = -A_e h (F S) Dm^-T (node 1: minus the sum) = -residual, ufl.derivative of "
+                     "the UFL energy"))
+    hessian = _check({"A": -thesis_membrane_hessian(x, Xbar, Y, nu, h)}, ref)
+    rows.append(_row("thesis-sec3.3.3.1-hessian", src + ", -grad_x grad_x E_stretch", hessian,
+                     "agrees: -A_e h (d(F S)/dF : D (x) D) = -Jacobian, the second ufl.derivative of the energy"))
+    # pressure: the closed surface of TET, the reference the derivative of the pressure work p V(x)
+    xs = np.einsum("nij,aj->nai", F3, TET) + 0.05 * rng.standard_normal((ELEMENT_SAMPLES, 4, 3))
+    surface = PressureSurface(TET, TET_FACES)
+    ref_p = {"P": p * np.array([surface.evaluate(xn)[1] for xn in xs])}
+    areas = np.array([0.5 * np.linalg.norm(np.cross(xs[:, f[1]] - xs[:, f[0]], xs[:, f[2]] - xs[:, f[0]]), axis=1)
+                      for f in TET_FACES])
+    printed = _check({"P": thesis_membrane_pressure(xs, TET_FACES, p).reshape(-1, 12)}, ref_p)
+    rows.append(_row("thesis-sec3.3.3.1-pressure", src + ", f_i with unit A_j", printed,
+                     "with A_j = 1 (the thesis' deliberate choice, so that small tendon triangles inflate) f_i is not "
+                     "the pressure force p dV/dx_i = sum_j p A_j n_j / 3 (V the enclosed volume, UFL on the closed "
+                     f"surface of a tetrahedron); off by the factor 1/A_j per triangle (deformed areas "
+                     f"{areas.min():.2f}-"
+                     f"{areas.max():.2f})"))
+    rows.append(_row("thesis-sec3.3.3.1-pressure-corrected", src + ", f_i",
+                     _check({"P": thesis_membrane_pressure(xs, TET_FACES, p, unit_area=False).reshape(-1, 12)}, ref_p),
+                     "f_i = sum_j 1/3 p A_j n_j with A_j the deformed area (uniform p): p dV/dx_i, dV/dx by "
+                     "ufl.derivative of V = (1/3) int phi . n da"))
+    return rows
+
+
+# --- thesis eq. 4.4: the semi-implicit backward Euler step (section 4.3.2) ---------------------------------------
+
+EULER_SOURCE = "eq. 4.4 and the linear system below it (sec. 4.3.2 Solver)"
+#: density rho, Rayleigh damping D = alpha M + beta K, time step h, body force
+EULER_RHO, EULER_ALPHA, EULER_BETA, EULER_H = 1.1, 0.2, 0.01, 0.1
+EULER_BODY_FORCE = np.array([0.0, -0.3, -1.0])
+EULER_SAMPLES = 7
+
+
+def thesis_eq4_4_step(M: np.ndarray, K: np.ndarray, f_int: np.ndarray, f_ext: np.ndarray, qn: np.ndarray,
+                      vn: np.ndarray, h: float, alpha: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Thesis eq. 4.4 linearised, as printed: (M + h D = h^2 K)(v_{n+1} - v_n) = h (f_ext - f_int(q_n) - D v_n
+    - h K v_n), q_{n+1} = q_n + h v_{n+1}, D = alpha M + beta K(q_n). The "=" inside the matrix is read as "+"
+    (M + h D + h^2 K, what f_int(q_{n+1}) = f_int(q_n) + K (q_{n+1} - q_n) put into eq. 4.4 gives)."""
+    D = alpha * M + beta * K
+    dv = np.linalg.solve(M + h * D + h * h * K, h * (f_ext - f_int - D @ vn - h * K @ vn))
+    v1 = vn + dv
+    return qn + h * v1, v1
+
+
+def _euler_rows() -> list[SeedRow]:
+    from model.verify.seeds.thesis_reference import BackwardEulerCell
+
+    mu, lam, h = MU_THESIS, LAMBDA_THESIS, EULER_H
+    cell = BackwardEulerCell(TET, mu, lam, EULER_RHO, EULER_ALPHA, EULER_BETA, h, EULER_BODY_FORCE)
+    rng = np.random.default_rng(SEED + 3)
+    printed, newton, from_vn, converged = [], [], [], []
+    for _ in range(EULER_SAMPLES):
+        F = I3 + 0.25 * rng.standard_normal((3, 3))
+        while np.linalg.det(F) < 0.3:
+            F = I3 + 0.25 * rng.standard_normal((3, 3))
+        qn = ((F - I3) @ TET.T).T.reshape(-1)
+        vn = 0.5 * rng.standard_normal(12)
+        cell.state(qn, vn)
+        parts = cell.ingredients()
+        q1, v1 = thesis_eq4_4_step(parts["M"], parts["K"], parts["f_int"], parts["f_ext"], qn, vn, h,
+                                   EULER_ALPHA, EULER_BETA)
+        printed.append(np.concatenate([q1, v1]))
+        v_newton = cell.newton_step(np.zeros(12))
+        newton.append(np.concatenate([qn + h * v_newton, v_newton]))
+        v_alt = cell.newton_step(vn)
+        from_vn.append(np.concatenate([qn + h * v_alt, v_alt]))
+        v = v_newton
+        for _ in range(30):
+            v = cell.newton_step(v)
+            if cell.residual_norm(v) < 1e-13:
+                break
+        converged.append(np.concatenate([qn + h * v, v]))
+    ref = {"P": np.array(newton)}
+    checks = _check({"P": np.array(printed)}, ref)
+    other = _check({"P": np.array(from_vn)}, ref)[0]
+    exact = _check({"P": np.array(printed)}, {"P": np.array(converged)})[0]
+    return [_row("thesis-eq4.4", f"{THESIS} {EULER_SOURCE}", checks,
+                 "agrees, reading the printed (M + hD = h^2 K) as M + hD + h^2 K: (q_{n+1}, v_{n+1}) is exactly one "
+                 "Newton step of the backward Euler system R(v) = M (v - v_n) - h (f_ext - f_int(q_n + h v) - D v) "
+                 "from v = 0 (q = q_n, the current positions), Jacobian by ufl.derivative, D = alpha M + beta K(q_n) "
+                 f"frozen; not the step from v = v_n (rel {other.max_rel_error:.1e}); one step is "
+                 f"{exact.max_rel_error:.1e} (rel) from the converged implicit solution; {EULER_SAMPLES} states of "
+                 "one stvk tet, h = 0.1")]
