@@ -21,12 +21,21 @@ Seeds (shared/seeds/):
   isolated (c1 = c2 = 0, P1 = 0, alpha = 1, a0 from ``field_samples``): P_fibre = P(muscle) - P(muscle with
   sigma_max = 0) = dF2/dlbar d lbar/dF, at the samples whose fibre stretch lies in the middle piece of f_active;
   the muscle with sigma_max = 0 is psi = K (ln J)^2 exactly, whose P is dU/dF.
+- thesis eqs. 4.13-4.15 (spring potential, force, Hessian), section 3.3.3.1 (the membrane: 3x2 F, B, per-triangle
+  energy, -grad and -Hessian, nodal pressure force) and eq. 4.4 (the semi-implicit backward Euler step) against
+  references written in UFL and evaluated or assembled by dolfinx (``thesis_reference``: ufl.diff/ufl.derivative,
+  a manifold triangle mesh in 3D, the closed surface of a tetrahedron, one Newton step of the implicit system).
+
+Modules: ``common`` (rows, checks, numerics), ``klar`` and ``thesis`` (one per seed document: transcriptions
+and rows), ``thesis_reference`` (the UFL/dolfinx references of the spring, membrane and time-step rows).
 
 Rows (ids): klar-eq1, klar-eq2, klar-eq3, klar-eq4-6 (positive-det F), klar-psd (the PSD projection
 the paper describes, checked independently: optimality certificate and random competitors), the
 klar-eq1/eq3/eq4-6 ``-inverted`` rows (``--inverted`` samples: R* = U* V*^T as the text defines it
 is a reflection when det F < 0), thesis-eq4.3, -eq4.11, -eq4.12, -eqC.15, -eqC.16 (each with C.22),
-thesis-eq4.5-<law>, thesis-eq4.8, -eqB.19, -eq4.9, -eq4.10, -dUdF; ``-corrected`` variants for every disagreement.
+thesis-eq4.5-<law>, thesis-eq4.8, -eqB.19, -eq4.9, -eq4.10, -dUdF, thesis-eq4.13, -eq4.14, -eq4.15,
+thesis-sec3.3.3.1-F, -energy, -forces, -hessian, -pressure, thesis-eq4.4; ``-corrected`` variants for every
+disagreement.
 """
 
 from __future__ import annotations

@@ -10,8 +10,17 @@
   sigma_max = 0) = dF2/dlbar d lbar/dF, at the samples whose fibre stretch lies in the middle piece of
   f_active; the muscle with sigma_max = 0 is psi = K (ln J)^2 exactly, whose P is dU/dF.
 
+- eqs. 4.13-4.15 (sec. 4.3.4.1): the spring potential W = k_s (|q| - r)^2, its force and Hessian, on the end
+  points, against ufl.diff of W (``thesis_reference.SpringReference``);
+- sec. 3.3.3.1: the membrane's 3x2 F, the plane-stress energy with the printed Voigt B, -grad and -Hessian on one
+  triangle in 3D (``MembraneTriangle``), the nodal pressure force with unit areas on the closed surface of a
+  tetrahedron (``PressureSurface``: p dV/dx);
+- eq. 4.4 (sec. 4.3.2): the semi-implicit backward Euler step against one Newton step of the implicit system on
+  one stvk tetrahedron (``BackwardEulerCell``).
+
 Rows: thesis-eq4.3, -eq4.11, -eq4.12, -eqC.15, -eqC.16 (each with C.22), thesis-eq4.5-<law>, thesis-eq4.8,
--eqB.19, -eq4.9, -eq4.10, -dUdF; ``-corrected`` variants for every disagreement.
+-eqB.19, -eq4.9, -eq4.10, -dUdF, thesis-eq4.13, -eq4.14, -eq4.15, thesis-sec3.3.3.1-F, -energy, -forces, -hessian,
+-pressure, thesis-eq4.4; ``-corrected`` variants for every disagreement.
 """
 
 from __future__ import annotations
