@@ -637,10 +637,10 @@ def _spring_rows() -> list[SeedRow]:
     zero = r == 0.0
     at_zero = _check({"A": 2.0 * H_printed[zero]}, {"A": ref["A"][zero]})[0]
     rows.append(_row("thesis-eq4.15", src.format("4.15"), _check({"A": H_printed}, ref),
-                     "r/|q| q q^T must be r/|q|^3 q q^T (q/|q| q^T/|q|), and the factor 2 of eq. 4.14 is missing: "
-                     f"eq. 4.15 is not even the derivative of eq. 4.14 (rel {vs_eq4_14.max_rel_error:.1e}); right "
-                     f"up to the factor 2 only for zero-length springs (2x eq. 4.15 at r = 0: rel "
-                     f"{at_zero.max_rel_error:.1e})"))
+                     "r/|q| q q^T must be r/|q|^3 q q^T (= r/|q| qhat qhat^T, qhat = q/|q|), and the factor 2 "
+                     "of eq. 4.14 is missing: eq. 4.15 is not even the derivative of eq. 4.14 (rel "
+                     f"{vs_eq4_14.max_rel_error:.1e}); right up to the factor 2 only for zero-length springs "
+                     f"(2x eq. 4.15 at r = 0: rel {at_zero.max_rel_error:.1e})"))
     rows.append(_row("thesis-eq4.15-corrected", src.format("4.15"),
                      _check({"A": spring_on_ends(q, thesis_eq4_15_corrected(q, r, ks))[1]}, ref),
                      "d2W/dq2 = 2 k_s [(1 - r/|q|) I + r/|q|^3 q q^T] ([[H, -H], [-H, H]] on the end points)"))
@@ -811,7 +811,7 @@ def _membrane_rows() -> list[SeedRow]:
 
 # --- thesis eq. 4.4: the semi-implicit backward Euler step (section 4.3.2) ---------------------------------------
 
-EULER_SOURCE = "eq. 4.4 and the linear system below it (sec. 4.3.2 Solver)"
+EULER_SOURCE = "eq. 4.4 and the linear system below it (sec. 4.3.2 Solver, from p. 64)"
 #: density rho, Rayleigh damping D = alpha M + beta K, time step h, body force
 EULER_RHO, EULER_ALPHA, EULER_BETA, EULER_H = 1.1, 0.2, 0.01, 0.1
 EULER_BODY_FORCE = np.array([0.0, -0.3, -1.0])
