@@ -128,8 +128,8 @@ def test_errors(tmp_path: Path) -> None:
     assert error(tmp_path / "nope.npz") == f"{tmp_path / 'nope.npz'}: no such file or directory"
 
     bad_json = tmp_path / "bad.json"
-    bad_json.write_text('{"F": [[[1, 0, 0], [0, 1, 0], [0, 0, 1]]],\n "psi": [1,]}')
-    assert error(bad_json).startswith(f"{bad_json}: not valid JSON at line 2 column 12: ")
+    bad_json.write_text('{"F": [[[1, 0, 0], [0, 1, 0], [0, 0, 1]]],\n "psi": [1 2]}')
+    assert error(bad_json).startswith(f"{bad_json}: not valid JSON at line 2 column 12: Expecting ',' delimiter")
 
     count = tmp_path / "count.npz"
     np.savez(count, F=F, P=np.zeros((29, 3, 3)))
