@@ -185,3 +185,26 @@ def test_errors(tmp_path: Path) -> None:
         write_arrays(tmp_path / "x.xlsx", {"F": F}, "xlsx")
     with pytest.raises(FileFormatError, match="P: 29 samples, F has 30"):
         write_arrays(tmp_path / "x.csv", {"F": F, "P": np.zeros((29, 3, 3))})
+
+
+def test_emit_npz_as_written_today(tmp_path: Path) -> None:
+    """A file as `verify emit` writes it with numpy.savez (0-d string arrays for the text) reads unchanged."""
+    rng = np.random.default_rng(7)
+    data = {"F": rng.standard_normal((4, 3, 3)), "psi": rng.standard_normal(4), "P": rng.standard_normal((4, 3, 3)),
+            "A": rng.standard_normal((4, 3, 3, 3, 3)), "S": rng.standard_normal((4, 3, 3)),
+            "labels": np.array(["identity", "rotation", "uniaxial", "isotropic"]),
+            "material": np.array("shape_target"), "params_json": np.array('{"kappa": 0.0, "mu": 1.0}')}
+    np.savez(tmp_path / "ref.npz", **data)
+    back = read_arrays(tmp_path / "ref.npz")
+    assert back["material"] == "shape_target" and json.loads(back["params_json"]) == {"kappa": 0.0, "mu": 1.0}
+    for key in ("F", "psi", "P", "A", "S"):
+        np.testing.assert_array_equal(back[key], data[key])
+    assert list(back["labels"]) == list(data["labels"])
+
+
+def test_help_names_every_csv_quantity() -> None:
+    from model.verify.files import csv_columns, formats_help
+
+    text = formats_help()
+    for key, variants in csv_columns().items():
+        assert variants[0][0][0] in text, key

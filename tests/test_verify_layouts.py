@@ -338,6 +338,13 @@ def test_hints(case) -> None:
     reordered = np.array([[[Tn[i, j, k, m] for (k, m) in other] for (i, j) in other] for Tn in law["CC"]])
     found = layouts.hints("voigt-material", F, P, A, user_tangent=reordered)
     assert len(found) == 1 and "11, 22, 33, 23, 13, 12" in found[0], found
+    ddsdde = layouts.from_reference("abaqus-ddsdde", F, P, A)["tangent"]  # checked above against the closed form
+    found = layouts.hints("abaqus-ddsdde", F, P, A, user_tangent=np.linalg.det(F)[:, None, None] * ddsdde)
+    assert len(found) == 1 and "J times abaqus-ddsdde" in found[0] and "divide by J" in found[0], found
+    tensor_shear = ddsdde.copy()
+    tensor_shear[:, :, 3:] *= 2
+    found = layouts.hints("abaqus-ddsdde", F, P, A, user_tangent=tensor_shear)
+    assert len(found) == 1 and "engineering shear strains" in found[0], found
     # noise explains nothing
     rng = np.random.default_rng(2)
     assert layouts.hints("ijkl", F, P, A, user_stress=P + rng.standard_normal(P.shape),
@@ -355,3 +362,12 @@ def test_bad_input() -> None:
         layouts.to_reference("voigt-spatial", F, None, np.zeros((12, 6, 6)))
     with pytest.raises(ValueError, match="stress measure 'tau' is unknown"):
         layouts.stress_from_P("tau", F, law["P"])
+
+
+def test_help_lists_every_layout_and_measure() -> None:
+    text = layouts.layouts_help()
+    lines = text.splitlines()
+    for name in layouts.TANGENT_LAYOUTS:
+        assert any(line.split()[0] == name for line in lines), name
+    for name in layouts.STRESS_MEASURES:
+        assert f"stress {name} " in text, name

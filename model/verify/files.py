@@ -164,6 +164,17 @@ def file_format(path: str | Path, fmt: str | None = None) -> str:
                           "or a directory of NAME.npy files")
 
 
+def formats_help() -> str:
+    """The file formats, for ``--help``."""
+    return ("  .npz             one array per quantity (F, psi, P, PK2, sigma, A, S, a0, s0, alpha, labels, material,\n"
+            "                   params_json, layout)\n"
+            "  DIRECTORY        one NAME.npy per quantity, meta.json = {material, params, layout}\n"
+            "  .csv             one row per sample; header F11..F33 (row-major), psi, P11..P33, sigma11.., PK2_11..,\n"
+            "                   A1111..A3333 | H_0_0..H_8_8 | D11..D66, S11.., a01.., s01.., alpha, label;\n"
+            "                   optional first lines '# material: NAME', '# params: {JSON}', '# layout: LAYOUT'\n"
+            "  .json            {\"material\": .., \"params\": {..}, \"layout\": .., \"F\": [[[..]]], ...}")
+
+
 # --- reading ---------------------------------------------------------------------------------------
 
 def read_arrays(path: str | Path, layout: str | None = None) -> Arrays:
@@ -421,5 +432,5 @@ def _write_csv(target: Path, data: Arrays) -> None:
             writer.writerow(cells + ([str(data["labels"][row])] if "labels" in data else []))
 
 
-__all__ = ["FORMATS", "STRESS_KEYS", "FileFormatError", "csv_columns", "file_format", "output_path", "read_arrays",
-           "write_arrays"]
+__all__ = ["FORMATS", "STRESS_KEYS", "FileFormatError", "csv_columns", "file_format", "formats_help", "output_path",
+           "read_arrays", "write_arrays"]

@@ -71,6 +71,13 @@ LAYOUT_DESCRIPTIONS: dict[str, str] = {
     "voigt-material": "6x6 material tangent dS/dE, with S",
 }
 
+#: a few words per layout, for hints
+LAYOUT_SHORT: dict[str, str] = {
+    "ijkl": "A[i,j,k,l]", "hessian9-col": "vec(F) column-major", "hessian9-row": "vec(F) row-major",
+    "voigt-spatial": "c, Truesdell rate, no Jaumann term", "abaqus-ddsdde": "C^J = c + the Jaumann term",
+    "voigt-material": "dS/dE",
+}
+
 STRESS_DESCRIPTIONS: dict[str, str] = {
     "P": "first Piola-Kirchhoff stress P = dpsi/dF",
     "S": "second Piola-Kirchhoff stress S = F^-1 P",
@@ -187,7 +194,8 @@ def P_from_stress(measure: str, F: np.ndarray, stress: np.ndarray) -> np.ndarray
 
 def material_tangent(F: np.ndarray, P: np.ndarray, A: np.ndarray) -> np.ndarray:
     """C_IJKL = dS_IJ/dE_KL = F^-1_Ii F^-1_Kk (A_iJkL - delta_ik S_JL), S = F^-1 P (no symmetrisation)."""
-    Finv = np.linalg.inv(_as_F(F))
+    F = _as_F(F)
+    Finv = np.linalg.inv(F)
     S = np.linalg.solve(F, P)
     G = A - np.einsum("ik,njl->nijkl", _I3, S)
     return np.einsum("nIi,nKk,niJkL->nIJKL", Finv, Finv, G)
@@ -308,6 +316,14 @@ def to_reference(layout: str, F: np.ndarray, stress: np.ndarray | None, tangent:
     return P, _A_from_spatial(F, sigma, C)
 
 
+def layouts_help() -> str:
+    """The layouts and stress measures, one per line, for ``--help``."""
+    lines = [f"  {name:15} {LAYOUT_DESCRIPTIONS[name]}" for name in TANGENT_LAYOUTS]
+    lines.append("  Voigt order 11, 22, 33, 12, 13, 23; engineering shear strains (no factor 2 in the tangent)")
+    lines += [f"  stress {name:8} {STRESS_DESCRIPTIONS[name]}" for name in STRESS_MEASURES]
+    return "\n".join(lines)
+
+
 # --- hints ------------------------------------------------------------------------------------------
 
 def relative_errors(user: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -410,7 +426,7 @@ def _tangent_candidates(layout: str, F: np.ndarray, P_ref: np.ndarray, A_ref: np
     shape = TANGENT_SHAPES[layout]
     ref = from_reference(layout, F, P_ref, A_ref)["tangent"]
     out = [_Candidate("the reference", "", ref)]
-    out += [_Candidate(f"{other} ({LAYOUT_DESCRIPTIONS[other]})", f"pass --layout {other}",
+    out += [_Candidate(f"{other} ({LAYOUT_SHORT[other]})", f"pass --layout {other}",
                        from_reference(other, F, P_ref, A_ref)["tangent"])
             for other in TANGENT_LAYOUTS if other != layout and TANGENT_SHAPES[other] == shape]
     if len(shape) == 2:
@@ -492,7 +508,7 @@ def hints(layout: str, F: np.ndarray, P_ref: np.ndarray, A_ref: np.ndarray, user
     return out
 
 
-__all__ = ["LAYOUT_DESCRIPTIONS", "NATURAL_STRESS", "STRESS_DESCRIPTIONS", "STRESS_MEASURES", "TANGENT_LAYOUTS",
-           "TANGENT_SHAPES", "VOIGT_LAYOUTS", "VOIGT_ORDER", "P_from_stress", "from_reference", "from_voigt", "hints",
-           "jaumann_correction", "material_tangent", "relative_errors", "spatial_tangent", "stress_from_P",
-           "tangent_from_voigt", "tangent_to_voigt", "to_reference", "to_voigt"]
+__all__ = ["LAYOUT_DESCRIPTIONS", "LAYOUT_SHORT", "NATURAL_STRESS", "STRESS_DESCRIPTIONS", "STRESS_MEASURES",
+           "TANGENT_LAYOUTS", "TANGENT_SHAPES", "VOIGT_LAYOUTS", "VOIGT_ORDER", "P_from_stress", "from_reference",
+           "from_voigt", "hints", "jaumann_correction", "layouts_help", "material_tangent", "relative_errors",
+           "spatial_tangent", "stress_from_P", "tangent_from_voigt", "tangent_to_voigt", "to_reference", "to_voigt"]
