@@ -371,3 +371,32 @@ def test_help_lists_every_layout_and_measure() -> None:
         assert any(line.split()[0] == name for line in lines), name
     for name in layouts.STRESS_MEASURES:
         assert f"stress {name} " in text, name
+
+
+@pytest.mark.parametrize("smallest", [1e-1, 1e-2, 1e-3, 1e-4])
+def test_nearly_flat_accuracy(smallest: float) -> None:
+    """StVK (C = lambda I (x) I + mu (d_ik d_jl + d_il d_jk), constant) at nearly flat F: the conversion of the
+    exact A stays within conversion_accuracy; for dS/dE that bound is eps cond(F)^3, not rounding."""
+    rng = np.random.default_rng(11)
+    n = 12
+    F = np.array([rotation(rng) @ np.diag([rng.uniform(0.8, 1.5), rng.uniform(0.8, 1.5), smallest]) @ rotation(rng)
+                  for _ in range(n)])
+    CC = np.zeros((3, 3, 3, 3))
+    for i, j, k, m in itertools.product(range(3), repeat=4):
+        CC[i, j, k, m] = LMBDA * I3[i, j] * I3[k, m] + MU * (I3[i, k] * I3[j, m] + I3[i, m] * I3[j, k])
+    CC = np.broadcast_to(CC, (n, 3, 3, 3, 3))
+    E = (np.transpose(F, (0, 2, 1)) @ F - I3) / 2
+    S = LMBDA * np.trace(E, axis1=1, axis2=2)[:, None, None] * I3 + 2 * MU * E
+    P = F @ S
+    A = np.zeros((n, 3, 3, 3, 3))
+    for i, j, k, m in itertools.product(range(3), repeat=4):  # A_ijkl = delta_ik S_jl + F_iI F_kK C_IjKl
+        A[:, i, j, k, m] = I3[i, k] * S[:, j, m] + np.einsum("nI,nK,IK->n", F[:, i, :], F[:, k, :], CC[0][:, j, :, m])
+    c = push_forward(F, np.array(CC))
+    for layout, stress, tangent in (("voigt-material", voigt6(S), voigt66(CC)), ("voigt-spatial", None, voigt66(c))):
+        out = layouts.from_reference(layout, F, P, A)
+        bound = layouts.conversion_accuracy(layout, F)
+        assert np.all(rel_errors(out["tangent"], tangent) <= np.maximum(bound["tangent"], 1e-15)), layout
+        if stress is not None:
+            assert np.all(rel_errors(out["stress"], stress) <= np.maximum(bound["stress"], 1e-15))
+    material = layouts.conversion_accuracy("voigt-material", F)["tangent"]
+    assert (material.max() > 1e-8) == (smallest <= 1e-3)  # where a check of dS/dE at rtol 1e-8 must be told

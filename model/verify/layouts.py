@@ -271,6 +271,29 @@ def from_reference(layout: str, F: np.ndarray, P: np.ndarray, A: np.ndarray,
     return {"stress": stress, "tangent": tangent}
 
 
+def conversion_accuracy(layout: str, F: np.ndarray, measure: str | None = None) -> dict[str, np.ndarray]:
+    """Per sample, the relative error ``from_reference`` may add to exact (rounded) P and A: {"stress": (N,),
+    "tangent": (N,)}, in the per-sample Frobenius norm. A check in ``layout`` should not ask for less.
+
+    ijkl, hessian9-*: 0 (a permutation). voigt-spatial, abaqus-ddsdde: 16 eps (products with F only).
+    voigt-material: eps cond(F)^3, from F^-1 (A - delta S) F^-T with S = F^-1 P: the flat directions of a
+    nearly flat F hold C scaled by the smallest singular value squared, so their digits are lost in A
+    itself (measured: at most 0.05 eps cond(F)^3 for StVK and neo-Hookean with a fibre; 1e-5 at
+    cond(F) = 1.2e4). Stress: P, sigma 4 eps; S = F^-1 P: 4 eps cond(F). eps = 2.2e-16.
+    """
+    _check_layout(layout)
+    measure = measure or NATURAL_STRESS[layout]
+    _check_measure(measure)
+    F = _as_F(F)
+    eps = np.finfo(np.float64).eps
+    cond = np.linalg.cond(F)
+    tangent = {"ijkl": 0.0 * cond, "hessian9-col": 0.0 * cond, "hessian9-row": 0.0 * cond,
+               "voigt-spatial": 16 * eps + 0.0 * cond, "abaqus-ddsdde": 16 * eps + 0.0 * cond,
+               "voigt-material": eps * cond**3}[layout]
+    stress = 4 * eps * cond if measure == "S" else 4 * eps + 0.0 * cond
+    return {"stress": stress, "tangent": tangent}
+
+
 def to_reference(layout: str, F: np.ndarray, stress: np.ndarray | None, tangent: np.ndarray | None,
                  measure: str | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """(P, A) from a stress and tangent in ``layout``: the inverse of ``from_reference``.
@@ -509,6 +532,7 @@ def hints(layout: str, F: np.ndarray, P_ref: np.ndarray, A_ref: np.ndarray, user
 
 
 __all__ = ["LAYOUT_DESCRIPTIONS", "LAYOUT_SHORT", "NATURAL_STRESS", "STRESS_DESCRIPTIONS", "STRESS_MEASURES",
-           "TANGENT_LAYOUTS", "TANGENT_SHAPES", "VOIGT_LAYOUTS", "VOIGT_ORDER", "P_from_stress", "from_reference",
-           "from_voigt", "hints", "jaumann_correction", "layouts_help", "material_tangent", "relative_errors",
-           "spatial_tangent", "stress_from_P", "tangent_from_voigt", "tangent_to_voigt", "to_reference", "to_voigt"]
+           "TANGENT_LAYOUTS", "TANGENT_SHAPES", "VOIGT_LAYOUTS", "VOIGT_ORDER", "P_from_stress", "conversion_accuracy",
+           "from_reference", "from_voigt", "hints", "jaumann_correction", "layouts_help", "material_tangent",
+           "relative_errors", "spatial_tangent", "stress_from_P", "tangent_from_voigt", "tangent_to_voigt",
+           "to_reference", "to_voigt"]
