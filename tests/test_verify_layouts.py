@@ -345,6 +345,11 @@ def test_hints(case) -> None:
     tensor_shear[:, :, 3:] *= 2
     found = layouts.hints("abaqus-ddsdde", F, P, A, user_tangent=tensor_shear)
     assert len(found) == 1 and "engineering shear strains" in found[0], found
+    # a sample where the reference is undefined (NaN, e.g. ln J at J <= 0) does not hide the explanation
+    P_nan, col_nan = P.copy(), col.copy()
+    P_nan[3] = np.nan
+    found = layouts.hints("hessian9-row", F, P_nan, A, user_stress=np.transpose(P, (0, 2, 1)), user_tangent=col_nan)
+    assert len(found) == 2 and "(P^T)" in found[0] and "--layout hessian9-col" in found[1], found
     # noise explains nothing
     rng = np.random.default_rng(2)
     assert layouts.hints("ijkl", F, P, A, user_stress=P + rng.standard_normal(P.shape),
