@@ -23,6 +23,13 @@ _HOME = {
 
 __all__ = sorted(_HOME)
 
+# The former module model.verify.reference is loaded now, so that importing it later never rebinds
+# the name ``reference`` here to the module (Python sets a package's attribute when a submodule is
+# first loaded); the function ``reference`` then comes from __getattr__.
+importlib.import_module("model.verify.reference")
+
+del globals()["reference"]
+
 
 def __getattr__(name: str) -> Any:
     if name not in _HOME:

@@ -66,7 +66,9 @@ def compare(user: Arrays, ref: Arrays, rtol: float, *, exclude: dict[str, list[t
         rel = err / np.maximum(norm, floor)
         rel[~np.isfinite(rel)] = np.inf
         err[~np.isfinite(err)] = np.inf
-        order = index[np.argsort(-rel, kind="stable")] if len(rel) else index
+        ranked = np.argsort(-rel, kind="stable")
+        order = index[ranked]
+        failing = index[ranked[rel[ranked] > rtol]]
         per_kind: list[tuple[str, float]] = []
         if labels is not None:
             kinds: dict[str, float] = {}
@@ -75,7 +77,7 @@ def compare(user: Arrays, ref: Arrays, rtol: float, *, exclude: dict[str, list[t
             per_kind = list(kinds.items())
         rows.append(CheckRow(q, float(err.max(initial=0.0)), float(rel.max(initial=0.0)),
                              int(order[0]) if len(order) else -1, bool(np.all(rel <= rtol)),
-                             tuple(int(m) for m in order[:worst]), len(index), tuple(excluded), tuple(per_kind)))
+                             tuple(int(m) for m in failing[:worst]), len(index), tuple(excluded), tuple(per_kind)))
     return rows
 
 

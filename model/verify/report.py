@@ -15,9 +15,9 @@ import numpy as np
 @dataclass(frozen=True)
 class CheckRow:
     """One quantity's result: the largest errors over the compared samples, the worst one's index
-    (-1 when none was compared), ok when every relative error is <= rtol; ``worst_samples`` the three
-    worst indices, ``compared`` and ``excluded`` ({reason: count}) the samples used and left out,
-    ``per_kind`` ((label, max rel error), ...) by sample label."""
+    (-1 when none was compared), ok when every relative error is <= rtol; ``worst_samples`` the indices
+    of the (up to three) worst samples out of tolerance, ``compared`` and ``excluded`` ((reason, count), ...)
+    the samples used and left out, ``per_kind`` ((label, max rel error), ...) by sample label."""
 
     quantity: str
     max_abs_error: float
