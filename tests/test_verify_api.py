@@ -129,7 +129,7 @@ def test_wrong_shapes_and_fields_are_one_line_errors() -> None:
     params = {"mu": MU, "lmbda": LMBDA}
     with pytest.raises(ValueError, match=r"P: shape \(6, 3, 3\) .*7 samples.*\(7, 3, 3\)"):
         check(F, P=P[:-1], law="neo_hookean", params=params)
-    with pytest.raises(ValueError, match=r"A: shape \(7, 9, 8\)"):
+    with pytest.raises(ValueError, match=r"tangent \(ijkl\): shape \(7, 9, 8\)"):
         check(F, tangent=A.reshape(7, 81)[:, :72].reshape(7, 9, 8), law="neo_hookean", params=params)
     with pytest.raises(ValueError, match="needs the field 'a0'"):
         check(F, P=P, law="tendon")

@@ -3,8 +3,9 @@ with a user's own values (check, a Python API and ``verify check``), and the for
 seed documents (seeds).
 
 Modules: evaluator (ReferenceEvaluator: the UFL reference), samples (F and field samples), emitter
-(emit), checker (check, compare), report (Report, CheckRow), hooks (where tangent layouts and file
-formats plug in), commands (the command line). The names below are imported on first use, so that
+(emit), checker (check, compare), report (Report, CheckRow), layouts (tangent layouts and stress
+measures), files (.npz, .npy directory, CSV, JSON), element (a user's element vector and stiffness),
+seeds (the seed documents' formulas), commands (the command line). The names below are imported on first use, so that
 the command line's parser does not load dolfinx.
 """
 

@@ -8,9 +8,16 @@ quantity, and samples where the law says the tangent is undefined (Law.tangent_u
 With ``projected`` the user's tangent is compared with the PSD projection of the reference (the 9x9
 matrix A[(i,j),(k,l)] with its negative eigenvalues set to 0, forms.projection.project_tangent).
 
+Layouts (model.verify.layouts): the reference is converted into the user's layout and measures, and
+compared there (an error in the user's stress never leaks into their tangent): the tangent in
+``layout`` (ijkl, hessian9-col, hessian9-row, voigt-spatial, abaqus-ddsdde, voigt-material), each
+stress the user gives in its own measure (P, PK2 = S, sigma; 3x3 or Voigt 6). Samples where the
+conversion itself may lose more than rtol/10 (``layouts.conversion_accuracy``: dS/dE at nearly flat F,
+eps cond(F)^3) are left out of that quantity, with a count.
+
 Hints: a constant factor (user = c ref over all samples, c = <u, r> / <r, r>, when
-||u - c r|| <= 10 rtol ||u||), a transposed P (user_n = ref_n^T within rtol), and the layout
-permutations of the tangent (hooks.layout_hints).
+||u - c r|| <= 10 rtol ||u||), a transposed P (user_n = ref_n^T within rtol), and otherwise what
+``layouts.hints`` finds: another layout, measure, Voigt order or index permutation that matches.
 """
 
 from __future__ import annotations
@@ -25,13 +32,18 @@ import numpy as np
 import forms
 from forms.metadata import FIELD_SHAPES
 from forms.projection import project_tangent
-from model.verify import hooks
-from model.verify.evaluator import QUANTITIES, SHAPES, ReferenceEvaluator
+from model.verify import files, layouts
+from model.verify.evaluator import SHAPES, ReferenceEvaluator
 from model.verify.report import CheckRow, Report
 
 Arrays = dict[str, np.ndarray]
 NOT_FINITE = "reference not finite there (psi, P or A is NaN/inf, e.g. ln J at det F <= 0)"
 UNDEFINED = "tangent undefined there (a breakpoint of the law: Law.tangent_undefined)"
+LOSSY = "the conversion to this layout loses more than rtol/10 there (layouts.conversion_accuracy)"
+#: the quantities of a check in the order of the report: the energy, the stresses (file keys), the tangent
+QUANTITIES = ("psi", "P", "PK2", "sigma", "A")
+#: the stress measure of each stress key (model.verify.files.STRESS_KEYS inverted)
+MEASURE = {key: measure for measure, key in files.STRESS_KEYS.items()}
 
 
 def compare(user: Arrays, ref: Arrays, rtol: float, *, exclude: dict[str, list[tuple[str, np.ndarray]]] | None = None,
@@ -136,20 +148,29 @@ def _transpose_hint(u: np.ndarray, r: np.ndarray, rtol: float) -> str | None:
 
 def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: str | None = None,
           params: dict[str, Any] | None = None, fields: dict[str, Any] | None = None, layout: str = "ijkl",
-          rtol: float = 1e-8, labels: list[str] | None = None, projected: bool = False) -> Report:
-    """Compare a user's psi (N,), P (N,3,3) and/or tangent (``layout``; ijkl: A (N,3,3,3,3),
-    A[n,i,j,k,l] = dP_ij/dF_kl) at F (N,3,3) with the reference of ``law`` (a built-in name or
-    "FILE.py:FUNCTION") with ``params`` and ``fields`` (per sample, or one value for all).
+          rtol: float = 1e-8, labels: list[str] | None = None, projected: bool = False, PK2: Any = None,
+          sigma: Any = None) -> Report:
+    """Compare a user's psi (N,), stresses and/or tangent at F (N,3,3) with the reference of ``law`` (a
+    built-in name or "FILE.py:FUNCTION") with ``params`` and ``fields`` (per sample, or one value for all).
 
+    Stresses: P (N,3,3) the first Piola-Kirchhoff stress, PK2 = S = F^-1 P the second, sigma = P F^T / J
+    the Cauchy stress (PK2 and sigma as (N,3,3) or Voigt (N,6), order 11, 22, 33, 12, 13, 23). The
+    tangent in ``layout`` (model.verify.layouts; ijkl: A (N,3,3,3,3), A[n,i,j,k,l] = dP_ij/dF_kl).
     Returns a Report (``.ok``, ``.raise_if_failed()``, ``str``); ValueError for bad input. Given a
     file path instead of F (and no law), checks that file (``check_file``).
     """
     if isinstance(F, (str, Path)) and law is None:
-        return check_file(Path(F), rtol=rtol, params=params, layout=layout, projected=projected)
+        return check_file(Path(F), rtol=rtol, params=params, layout=None if layout == "ijkl" else layout,
+                          projected=projected)
     if law is None:
         raise ValueError("check: law is required (a built-in law's name or FILE.py:FUNCTION)")
     if not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol = {rtol!r}, must be a finite number > 0")
+    if layout not in layouts.TANGENT_LAYOUTS:
+        raise ValueError(f"layout {layout!r}: unknown (choose from {', '.join(layouts.TANGENT_LAYOUTS)})")
+    if projected and layout in layouts.VOIGT_LAYOUTS:
+        raise ValueError(f"projected: the PSD projection is that of the 9x9 Hessian; layout {layout} is not one "
+                         "(use ijkl, hessian9-col or hessian9-row)")
     F = np.asarray(F, dtype=np.float64)
     if F.size == 0 or F.size % 9:
         raise ValueError(f"F: shape {F.shape}, expected (N, 3, 3)")
@@ -165,20 +186,31 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
         user["psi"] = _as_samples("psi", psi, n, SHAPES["psi"])
     if P is not None:
         user["P"] = _as_samples("P", P, n, SHAPES["P"])
+    for key, value in (("PK2", PK2), ("sigma", sigma)):
+        if value is not None:
+            voigt = np.asarray(value).ndim == 2 and np.shape(value)[-1] == 6
+            user[key] = _as_samples(key, value, n, (6,) if voigt else (3, 3))
     if tangent is not None:
-        user["A"] = hooks.to_ijkl(tangent, layout, n, F=F, **({"P": user["P"]} if "P" in user else {}))
+        user["A"] = _as_samples(f"tangent ({layout})", tangent, n, layouts.TANGENT_SHAPES[layout])
     if not user:
-        raise ValueError("none of psi, P, tangent to check")
+        raise ValueError("none of psi, P, PK2, sigma, tangent to check")
     evaluator = ReferenceEvaluator(law, dict(params or {}), n)
-    ref = evaluator.evaluate(F, **sample_fields)
+    values = evaluator.evaluate(F, **sample_fields)
+    A_ref = values["A"]
+    if projected and "A" in user:
+        finite = np.all(np.isfinite(A_ref.reshape(n, -1)), axis=1)
+        A_ref = np.full_like(A_ref, np.nan)
+        A_ref[finite] = project_tangent(values["A"][finite])
+    with np.errstate(all="ignore"):  # singular F: the conversions give inf/nan there, left out as not finite
+        ref = _in_layout(layout, F, values["psi"], values["P"], A_ref, user)
+        accuracy = layouts.conversion_accuracy(layout, F)
+        lossy_S = layouts.conversion_accuracy(layout, F, "S")["stress"] > rtol / 10
     exclude: dict[str, list[tuple[str, np.ndarray]]] = {}
     if "A" in user:
-        exclude["A"] = [(UNDEFINED, evaluator.tangent_undefined(F, **sample_fields))]
-        if projected:
-            finite = np.all(np.isfinite(ref["A"].reshape(n, -1)), axis=1)
-            projected_ref = np.full_like(ref["A"], np.nan)
-            projected_ref[finite] = project_tangent(ref["A"][finite])
-            ref = {**ref, "A": projected_ref}
+        exclude["A"] = [(UNDEFINED, evaluator.tangent_undefined(F, **sample_fields)),
+                        (LOSSY, accuracy["tangent"] > rtol / 10)]
+    if "PK2" in user:
+        exclude["PK2"] = [(LOSSY, lossy_S)]
     rows = compare(user, ref, rtol, exclude=exclude, labels=labels)
     hints: list[str] = []
     compared = {q: _compared_mask(ref[q], exclude.get(q, [])) for q in user}
@@ -186,20 +218,34 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
         if row.ok:
             continue
         q, keep = row.quantity, compared[row.quantity]
-        hint = _factor_hint(q, user[q][keep], ref[q][keep], rtol)
-        if hint:
-            hints.append(hint)
-        if q == "P":
-            hint = _transpose_hint(user[q][keep], ref[q][keep], rtol)
-            if hint:
-                hints.append(hint)
-        if q == "A":
-            hints += hooks.layout_hints(user[q][keep], ref[q][keep], layout, rtol)
+        found = [h for h in (_factor_hint(q, user[q][keep], ref[q][keep], rtol),
+                             _transpose_hint(user[q][keep], ref[q][keep], rtol) if q == "P" else None) if h]
+        if not found and q != "psi":
+            keep &= np.all(np.isfinite(values["P"].reshape(n, -1)), axis=1)
+            keep &= np.all(np.isfinite(A_ref.reshape(n, -1)), axis=1)
+            with np.errstate(all="ignore"):
+                found = layouts.hints(layout, F[keep], values["P"][keep], A_ref[keep],
+                                      user_tangent=user[q][keep] if q == "A" else None,
+                                      user_stress=user[q][keep] if q != "A" else None,
+                                      measure=MEASURE.get(q))
+        hints += found
     notes = []
     for row in rows:
         if row.quantity == "A" and not row.compared:
             notes.append("no sample left to compare A")
-    return Report(rows, rtol, law, F, labels, hints, notes, projected and "A" in user)
+    return Report(rows, rtol, law, F, labels, hints, notes, projected and "A" in user, layout)
+
+
+def _in_layout(layout: str, F: np.ndarray, psi: np.ndarray, P: np.ndarray, A: np.ndarray, user: Arrays) -> Arrays:
+    """The reference quantities the user gave, in the user's layout, measures and shapes (3x3 or Voigt)."""
+    ref: Arrays = {"psi": psi}
+    for key in ("P", "PK2", "sigma"):
+        if key in user:
+            stress = layouts.stress_from_P(MEASURE[key], F, P)
+            ref[key] = layouts.to_voigt(stress) if user[key].shape[1:] == (6,) else stress
+    if "A" in user:
+        ref["A"] = layouts.from_reference(layout, F, P, A)["tangent"]
+    return ref
 
 
 def _compared_mask(ref: np.ndarray, exclude: list[tuple[str, np.ndarray]]) -> np.ndarray:
@@ -239,12 +285,13 @@ def merge_parameters(path: Path, file_params: dict[str, Any] | None, given: dict
 
 
 def load_for_check(path: Path, *, material: str | None = None, params: dict[str, Any] | None = None,
-                   layout: str = "ijkl") -> tuple[str, dict[str, Any], np.ndarray, Arrays, Arrays, list[str] | None]:
-    """(material, params, F, fields, user quantities, labels) from a file in the emit layout; the
-    material and parameters may come from the caller when the file has none (module check_file)."""
-    content = hooks.read_arrays(path)
-    if "F" not in content:
-        raise ValueError(f"{path}: missing array 'F' (the layout is that of verify emit)")
+                   layout: str | None = None) -> tuple[str, dict[str, Any], np.ndarray, Arrays, Arrays,
+                                                       list[str] | None, str]:
+    """(material, params, F, fields, user quantities, labels, layout) from a file (model.verify.files:
+    .npz, a directory of .npy, .csv, .json); the material and parameters may come from the caller when
+    the file has none (module check_file); the layout is the file's, else ``layout``, else ijkl (both
+    given and different: an error)."""
+    content = files.read_arrays(path, layout)
     file_material = str(content["material"]) if "material" in content else None
     if material is not None and file_material is not None and material != file_material:
         raise ValueError(f"{path}: --material {material} conflicts with the file's material {file_material}")
@@ -257,23 +304,26 @@ def load_for_check(path: Path, *, material: str | None = None, params: dict[str,
     fields = {k: content[k] for k in wanted if k in content}
     user = {q: content[q] for q in QUANTITIES if q in content}
     if not user:
-        raise ValueError(f"{path}: none of psi, P, A to check")
+        raise ValueError(f"{path}: none of psi, P, PK2, sigma, A to check")
     labels = [str(x) for x in content["labels"].reshape(-1)] if "labels" in content else None
-    return material, params, F, fields, user, labels
+    return material, params, F, fields, user, labels, str(content.get("layout") or "ijkl")
 
 
 def check_file(path: Path, rtol: float = 1e-8, *, material: str | None = None, params: dict[str, Any] | None = None,
-               layout: str = "ijkl", projected: bool = False) -> Report:
+               layout: str | None = None, projected: bool = False) -> Report:
     """Recompute the reference for the file's F and fields and compare what it holds.
 
     The law is the file's ``material`` and ``params_json``; ``material`` (--material/--energy) and
     ``params`` (--param) supply them when the file has none and complete them otherwise: a
-    different material or a parameter given in both with different values is an error.
+    different material or a parameter given in both with different values is an error. The tangent's
+    layout is the file's ``layout``, else ``layout`` (--layout), else ijkl.
     """
-    material, params, F, fields, user, labels = load_for_check(path, material=material, params=params, layout=layout)
+    material, params, F, fields, user, labels, layout = load_for_check(path, material=material, params=params,
+                                                                       layout=layout)
     try:
-        return check(F, psi=user.get("psi"), P=user.get("P"), tangent=user.get("A"), law=material, params=params,
-                     fields=fields, layout=layout, rtol=rtol, labels=labels, projected=projected)
+        return check(F, psi=user.get("psi"), P=user.get("P"), PK2=user.get("PK2"), sigma=user.get("sigma"),
+                     tangent=user.get("A"), law=material, params=params, fields=fields, layout=layout, rtol=rtol,
+                     labels=labels, projected=projected)
     except ValueError as err:
         if isinstance(err, forms.ParameterError):
             raise

@@ -2,7 +2,7 @@
 model/verify/element.py exists). Exit codes: 0 ok, 1 out of tolerance, 2 bad input (one line "error: ...").
 
 The help texts list the laws with their parameters and defaults (forms.registry), the tangent
-layouts and the file formats (hooks).
+layouts (model.verify.layouts) and the file formats (model.verify.files).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Any
 
 from mpi4py import MPI
 
-from model.verify import hooks
+from model.verify import files, layouts
 
 SUBCOMMANDS = ("emit", "check", "seeds", "element")
 
@@ -40,12 +40,10 @@ def laws_help() -> str:
 
 
 def formats_help() -> str:
-    supported = ", ".join(hooks.SUPPORTED_LAYOUTS)
-    lines = [f"tangent layouts (--layout; accepted today: {supported}): {', '.join(hooks.LAYOUTS)}",
-             "  ijkl: A[n,i,j,k,l] = dP_ij/dF_kl, shape (N,3,3,3,3)",
-             "file formats: " + "; ".join(f"{name} ({what})" for name, what in hooks.FORMATS)
-             + f"; coming: {', '.join(hooks.PLANNED_FORMATS)}"]
-    return "\n".join(lines)
+    """The tangent layouts, stress measures and file formats, for the help texts."""
+    return ("tangent layouts (--layout; check: the file's own 'layout' when it has one):\n" + layouts.layouts_help()
+            + "\nfile formats (chosen by the path: .npz, a directory of .npy files, CSV, JSON):\n"
+            + files.formats_help())
 
 
 def epilog() -> str:
@@ -83,7 +81,8 @@ def _law_options(parser: argparse.ArgumentParser, required: bool) -> None:
     group.add_argument("--energy", metavar="FILE.py:FUNCTION", help="a UFL energy of your own (forms/user_law.py)")
     parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                         help="a parameter: a number (inf allowed) or a word (isotropic=stvk)")
-    parser.add_argument("--layout", choices=hooks.LAYOUTS, default="ijkl", help="the tangent's layout")
+    parser.add_argument("--layout", choices=layouts.TANGENT_LAYOUTS, default=None,
+                        help="the tangent's layout (default: the file's, else ijkl)")
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
@@ -155,10 +154,9 @@ def main(args: argparse.Namespace) -> int:
             if len(fields) != len(args.field):
                 raise ValueError("--field: a field is given twice")
             data = verify.emit(material, params, args.samples, args.seed, args.out, args.inverted, fields=fields,
-                               include_undefined=args.at_breakpoints, layout=args.layout)
+                               include_undefined=args.at_breakpoints, layout=args.layout or "ijkl")
             _print(summary_text(data))
             return 0
-        hooks.require_layout(args.layout)
         report = verify.check_file(args.file, rtol=args.rtol, material=material, params=params, layout=args.layout,
                                    projected=args.projected)
     except (ValueError, OSError, forms.ParameterError) as err:

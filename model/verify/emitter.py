@@ -3,8 +3,10 @@
 The samples (model.verify.samples) are moved off points where the tangent is undefined (fibre
 breakpoints, Law.tangent_undefined) unless ``include_undefined``; samples whose reference is not
 finite (psi, P or A NaN/inf: ln J laws at det F < 0 with ``inverted``) are dropped, never written.
-The file holds F, psi, P, the tangent (hooks.from_ijkl: A in the ijkl layout), the law's fields,
-labels, material, params_json (defaults included) and emit_json (what was moved or dropped).
+The file (model.verify.files: .npz, a directory of .npy, .csv or .json, by the path's suffix) holds F,
+psi, P, the tangent A in ``layout`` (model.verify.layouts) with the layout's own stress as well (PK2 for
+voigt-material, sigma for voigt-spatial and abaqus-ddsdde, in Voigt form), the law's fields, labels,
+material, params_json (defaults included), layout and emit_json (what was moved or dropped).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from model.verify import hooks
+from model.verify import files, layouts
 from model.verify.evaluator import ReferenceEvaluator
 from model.verify.samples import avoid_undefined, deformation_samples, fibre_breakpoints, field_samples, kind_counts
 
@@ -29,7 +31,8 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
     ``data["emit_json"]`` records {"requested", "written", "kinds": {label: count}, "moved":
     {reason: count}, "dropped": {reason: count}}.
     """
-    hooks.require_layout(layout)
+    if layout not in layouts.TANGENT_LAYOUTS:
+        raise ValueError(f"--layout {layout!r}: unknown (choose from {', '.join(layouts.TANGENT_LAYOUTS)})")
     drawn = field_samples(material, samples, seed)
     for name, value in (fields or {}).items():
         if name not in drawn:
@@ -59,12 +62,15 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
     labels = [label for label, k in zip(labels, keep) if k]
     summary = {"requested": samples, "written": int(keep.sum()), "kinds": kind_counts(labels), "moved": moved,
                "dropped": dropped}
-    tangent = hooks.from_ijkl(values["A"][keep], layout, F=F[keep], P=values["P"][keep])
-    data = {"F": F[keep], "psi": values["psi"][keep], "P": values["P"][keep], **tangent,
+    converted = layouts.from_reference(layout, F[keep], values["P"][keep], values["A"][keep])
+    measure = layouts.NATURAL_STRESS[layout]
+    stress = {} if measure == "P" else {files.STRESS_KEYS[measure]: converted["stress"]}
+    data = {"F": F[keep], "psi": values["psi"][keep], "P": values["P"][keep], **stress, "A": converted["tangent"],
+            "layout": np.array(layout),
             **{k: v[keep] for k, v in drawn.items()}, "labels": np.array(labels), "material": np.array(material),
             "params_json": np.array(json.dumps(evaluator.parameters(), sort_keys=True)),
             "emit_json": np.array(json.dumps(summary))}
-    data["path"] = np.array(str(hooks.write_arrays(Path(out), data)))
+    data["path"] = np.array(str(files.write_arrays(Path(out), data)))
     return data
 
 

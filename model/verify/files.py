@@ -52,7 +52,7 @@ from model.verify.layouts import TANGENT_LAYOUTS, TANGENT_SHAPES, VOIGT_ORDER
 
 FORMATS = ("npz", "npy", "csv", "json")
 SUFFIXES = {".npz": "npz", ".csv": "csv", ".json": "json"}
-TEXT_KEYS = ("material", "params_json", "layout")
+TEXT_KEYS = ("material", "params_json", "layout", "emit_json")  # emit_json: what emit moved or dropped (.npz only)
 #: the key of each stress measure in a file (S is the shape-target field, so the second Piola-Kirchhoff is PK2)
 STRESS_KEYS = {"P": "P", "S": "PK2", "sigma": "sigma"}
 META_FILE = "meta.json"

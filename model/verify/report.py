@@ -63,6 +63,8 @@ class Report:
     hints: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     projected: bool = False
+    #: the tangent's layout (model.verify.layouts)
+    layout: str = "ijkl"
 
     @property
     def ok(self) -> bool:
@@ -94,7 +96,7 @@ class Report:
 
     def __str__(self) -> str:
         tangent = "A (PSD-projected, both sides)" if self.projected else "A"
-        head = f"verify check: {self.law}, {len(self.F)} samples, rtol {self.rtol:g}"
+        head = f"verify check: {self.law}, {len(self.F)} samples, rtol {self.rtol:g}, tangent layout {self.layout}"
         lines = [head, format_rows(self.rows)]
         if self.projected:
             lines.append(f"(A is compared as {tangent})")
