@@ -135,14 +135,15 @@ def cell_name(msh: dmesh.Mesh) -> str:
 
 # --- meshes and tags ----------------------------------------------------------------------------------
 
-def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 1) -> dmesh.Mesh:
-    """A tetrahedral mesh with Lagrange geometry of ``degree`` (cells in dolfinx's node order);
-    every rank but the one holding the data passes empty arrays."""
+def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 1,
+                cell: str = "tetrahedron") -> dmesh.Mesh:
+    """A mesh of ``cell``s ("tetrahedron" or "hexahedron") with Lagrange geometry of ``degree`` (cells in
+    dolfinx's node order); every rank but the one holding the data passes empty arrays."""
     gdim = 3
     if LEGACY:
-        domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, degree))
+        domain = ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell), degree))
     else:
-        domain = ufl.Mesh(basix.ufl.element("Lagrange", "tetrahedron", degree, shape=(gdim,)))
+        domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, degree, shape=(gdim,)))
     return dmesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), np.asarray(points, dtype=np.float64), domain)
 
 
