@@ -218,6 +218,30 @@ def test_tet10_neo_hookean_curved_default_rule() -> None:
     assert rel(f_swapped[(3 * np.array(swap)[:, None] + np.arange(3)).reshape(-1)], f) > 1e-2
 
 
+def test_tet10_custom_rule_against_numpy(tmp_path: Path) -> None:
+    """A rule of the user's own (27-point conical Gauss, not basix's) on a curved neo-Hookean tet10: the reference
+    uses exactly those points; the 4-point rule given as points equals the default degree 2; bad rules are refused."""
+    X, u = tet10_element(curved=True, seed=4)
+    params = {"mu": MU, "lmbda": LMBDA}
+    rule = conical_rule(3)
+    f, K = el.element_reference("neo_hookean", params, X, u, "tet10", quadrature=rule)
+    f_np, K_np = isoparametric_numpy(neo_hookean, X, u, rule, tet10_shape_gradients)
+    assert rel(f, f_np) < 1e-10 and rel(K, K_np) < 1e-10
+    f4, K4 = el.element_reference("neo_hookean", params, X, u, "tet10", quadrature=four_point_rule())
+    f2, K2 = el.element_reference("neo_hookean", params, X, u, "tet10")
+    assert rel(f4, f2) < 1e-12 and rel(K4, K2) < 1e-12 and rel(f4, f) > 1e-8  # the rule matters here
+    path = _file(tmp_path, "custom", X, u, f_np, K_np, cell="tet10", quadrature_points=rule[0].tolist(),
+                 quadrature_weights=rule[1].tolist())
+    report = el.check_element(path)
+    assert report.ok and "custom rule of 27 points" in report.format(), report.format()
+    with pytest.raises(ValueError, match="quadrature_weights: they sum to 1, must sum"):
+        el.element_reference("neo_hookean", params, X, u, "tet10", quadrature=(rule[0], 6 * rule[1]))
+    with pytest.raises(ValueError, match="quadrature_points: point 0"):
+        el.element_reference("neo_hookean", params, X, u, "tet10", quadrature=(rule[0] + 1.0, rule[1]))
+    with pytest.raises(ValueError, match="polar rotation"):
+        el.element_reference("corotated", params, X, u, "tet10", quadrature=rule)
+
+
 def test_hex8_gauss_2x2x2_against_numpy() -> None:
     points, weights = el.quadrature_rule("hex8")
     gp, gw = gauss_2x2x2()

@@ -150,11 +150,19 @@ class ElementReference:
     cell: str
     law: str
     node_order: tuple[int, ...]
-    quadrature_degree: int
+    quadrature_degree: int | None  # None: the custom rule ``quadrature`` (points, weights)
     f: np.ndarray
     K: np.ndarray
     W: float
     parameters: dict[str, Any] = field(default_factory=dict)
+    quadrature_points: int = 0
+
+    @property
+    def quadrature(self) -> str:
+        """The rule in words: "degree 2" or "custom rule of 5 points"."""
+        if self.quadrature_degree is None:
+            return f"custom rule of {self.quadrature_points} points"
+        return f"degree {self.quadrature_degree}"
 
 
 def _quadrature_degree(spec: CellType, quadrature_degree: Any) -> int:
@@ -164,6 +172,38 @@ def _quadrature_degree(spec: CellType, quadrature_degree: Any) -> int:
             quadrature_degree < 1:
         raise ValueError(f"quadrature_degree = {quadrature_degree!r}: must be an integer >= 1")
     return int(quadrature_degree)
+
+
+#: the reference cell's volume: the tetrahedron with vertices 0, e_x, e_y, e_z; the unit cube
+REFERENCE_VOLUME = {"tetrahedron": 1.0 / 6.0, "hexahedron": 1.0}
+
+
+def custom_rule(cell: str, points: Any, weights: Any) -> tuple[np.ndarray, np.ndarray]:
+    """A quadrature rule of the user's own, validated: points (m, 3) in the reference cell (the tetrahedron
+    with vertices 0, e_x, e_y, e_z, the same for vtk, gmsh and basix; the cube [0, 1]^3 of vtk and basix,
+    gmsh's [-1, 1]^3 mapped by (xi + 1)/2), weights (m,) summing to its volume (1/6, 1)."""
+    spec = cell_type(cell)
+    try:
+        p = np.asarray(points, dtype=np.float64)
+        w = np.asarray(weights, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("quadrature_points, quadrature_weights: not arrays of numbers") from None
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0 or not np.all(np.isfinite(p)):
+        raise ValueError(f"quadrature_points: shape {p.shape}, expected (m, 3) finite reference coordinates")
+    if w.shape != (len(p),) or not np.all(np.isfinite(w)):
+        raise ValueError(f"quadrature_weights: shape {w.shape}, expected ({len(p)},) finite numbers (one per point)")
+    tol = 1e-12
+    inside = np.all(p >= -tol, axis=1) & (np.all(p <= 1 + tol, axis=1) if spec.dolfinx_cell == "hexahedron"
+                                          else p.sum(axis=1) <= 1 + tol)
+    if not np.all(inside):
+        i = int(np.flatnonzero(~inside)[0])
+        raise ValueError(f"quadrature_points: point {i} {p[i].tolist()} lies outside the reference "
+                         f"{spec.dolfinx_cell} (vertices 0, e_x, e_y, e_z; or [0, 1]^3)")
+    volume = REFERENCE_VOLUME[spec.dolfinx_cell]
+    if abs(w.sum() - volume) > 1e-12 * volume:
+        raise ValueError(f"quadrature_weights: they sum to {w.sum():.15g}, must sum to the reference cell's volume "
+                         f"{volume:.15g} (weights that sum to 1 on a tetrahedron: multiply them by 1/6)")
+    return p, w
 
 
 def _field_constants(msh: Any, law: str, needed: tuple[str, ...], fields: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -196,12 +236,15 @@ def _field_constants(msh: Any, law: str, needed: tuple[str, ...], fields: Mappin
 
 def assemble_element(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.ndarray, cell: str = "tet4",
                      fields: Mapping[str, Any] | None = None, node_order: NodeOrder = "vtk",
-                     quadrature_degree: int | None = None) -> ElementReference:
+                     quadrature_degree: int | None = None,
+                     quadrature: tuple[Any, Any] | None = None) -> ElementReference:
     """f, K and W of one element assembled by dolfinx (module docstring), in the user's node numbering.
 
     X, u: (n, 3) reference coordinates and displacements of the nodes in the user's numbering
     (``node_order``); ``fields``: the law's per-element constants (S (3,3), a0 (3,), s0 (3,), alpha ());
-    ``quadrature_degree``: basix's default rule of that degree (default: the cell's, see CELLS).
+    ``quadrature_degree``: basix's default rule of that degree (default: the cell's, see CELLS);
+    ``quadrature``: instead, a rule of your own, (points (m, 3), weights (m,)) on the reference cell
+    (``custom_rule``; not for laws with a polar rotation, whose rotation lives on basix's default points).
     """
     import ufl
     from dolfinx import fem
@@ -215,6 +258,11 @@ def assemble_element(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.n
     u = _nodal(u, "u", spec)
     perm = node_permutation(cell, node_order)
     degree = _quadrature_degree(spec, quadrature_degree)
+    rule = None
+    if quadrature is not None:
+        if quadrature_degree is not None:
+            raise ValueError("quadrature_degree, quadrature_points: give one of the two, not both")
+        rule = custom_rule(cell, *quadrature)
     entry = forms.resolve_law(law)  # ParameterError naming the law when unknown
     scale = float(np.max(np.ptp(X, axis=0)))
     gaps = np.linalg.norm(X[:, None, :] - X[None, :, :], axis=2) + np.eye(spec.nodes) * (scale + 1.0)
@@ -242,10 +290,17 @@ def assemble_element(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.n
     R = None
     polar = None
     if material.needs_rotation:
+        if rule is not None:
+            raise ValueError(f"quadrature_points: {law} uses the polar rotation, stored at basix's default points; "
+                             "give quadrature_degree instead of a rule of your own")
         polar = PolarField(msh, material.rotation_argument(F), degree)
         polar.update()
         R = polar.rotation
-    dx = ufl.dx(domain=msh, metadata={"quadrature_degree": degree})
+    metadata: dict[str, Any] = {"quadrature_degree": degree}
+    if rule is not None:
+        metadata = {"quadrature_rule": "custom", "quadrature_degree": 1, "quadrature_points": rule[0],
+                    "quadrature_weights": rule[1]}
+    dx = ufl.dx(domain=msh, metadata=metadata)
     v = ufl.TestFunction(space)
     residual = ufl.inner(material.stress(F, R), ufl.grad(v)) * dx
     jacobian = ufl.derivative(residual, uh, ufl.TrialFunction(space))
@@ -260,17 +315,19 @@ def assemble_element(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.n
     vector.destroy()
     matrix.destroy()
     W = float(fem.assemble_scalar(fem.form(energy)))
-    return ElementReference(cell, law, tuple(int(i) for i in perm), degree, f, K, W, material.parameters())
+    return ElementReference(cell, law, tuple(int(i) for i in perm), None if rule is not None else degree, f, K, W,
+                            material.parameters(), len(rule[1]) if rule is not None else 0)
 
 
 def element_reference(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.ndarray, cell: str = "tet4",
                       fields: Mapping[str, Any] | None = None, node_order: NodeOrder = "vtk",
-                      quadrature_degree: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      quadrature_degree: int | None = None,
+                      quadrature: tuple[Any, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(f (3n,), K (3n, 3n)): f_a = int P : grad N_a dX, K = df/du, node-major, in the user's node numbering.
 
     See ``assemble_element`` for the arguments and the module docstring for cells, orderings and quadrature.
     """
-    ref = assemble_element(law, params, X, u, cell, fields, node_order, quadrature_degree)
+    ref = assemble_element(law, params, X, u, cell, fields, node_order, quadrature_degree, quadrature)
     return ref.f, ref.K
 
 
@@ -291,9 +348,11 @@ class ElementInput:
     f: np.ndarray | None = None
     K: np.ndarray | None = None
     W: float | None = None
+    quadrature: tuple[np.ndarray, np.ndarray] | None = None  # a rule of the user's own (points, weights)
 
 
-FILE_KEYS = ("cell", "node_order", "material", "params", "fields", "quadrature_degree", "X", "u", "f", "K", "W")
+FILE_KEYS = ("cell", "node_order", "material", "params", "fields", "quadrature_degree", "quadrature_points",
+             "quadrature_weights", "X", "u", "f", "K", "W")
 FIELD_NAMES = ("S", "a0", "s0", "alpha")
 
 
@@ -334,8 +393,9 @@ def load_element(source: Path | str | Mapping[str, Any], material: str | None = 
                  params: Mapping[str, Any] | None = None, node_order: NodeOrder | None = None,
                  quadrature_degree: int | None = None) -> ElementInput:
     """An element from a file (.npz or .json) or a dict with the keys cell, node_order (default "vtk"),
-    material, params, fields, quadrature_degree, X, u and the user's f, K (and W); the arguments, when
-    given, replace the file's values. ValueError naming the key for bad input."""
+    material, params, fields, quadrature_degree or quadrature_points and quadrature_weights (a rule of your own,
+    ``custom_rule``), X, u and the user's f, K (and W); the arguments, when given, replace the file's values
+    (a quadrature_degree argument replaces the file's rule too). ValueError naming the key for bad input."""
     name, raw = _read(source)
     if "cell" not in raw:
         raise ValueError(f"{name}: missing 'cell' (one of {', '.join(CELLS)})")
@@ -363,11 +423,22 @@ def load_element(source: Path | str | Mapping[str, Any], material: str | None = 
     degree = quadrature_degree if quadrature_degree is not None else raw.get("quadrature_degree")
     if isinstance(degree, np.ndarray):
         degree = int(degree)
+    rule = None
+    given = [k for k in ("quadrature_points", "quadrature_weights") if k in raw]
+    if given and quadrature_degree is None:
+        if len(given) == 1:
+            other = ({"quadrature_points", "quadrature_weights"} - set(given)).pop()
+            raise ValueError(f"{name}: {given[0]} without {other}")
+        if degree is not None:
+            raise ValueError(f"{name}: quadrature_degree and quadrature_points: give one of the two, not both")
+        rule = (raw["quadrature_points"], raw["quadrature_weights"])
     try:
         node_permutation(cell, order)
         X = _nodal(raw["X"], "X", spec)
         u = _nodal(raw["u"], "u", spec)
         _quadrature_degree(spec, degree)
+        if rule is not None:
+            rule = custom_rule(cell, *rule)
     except ValueError as err:
         raise ValueError(f"{name}: {err}") from None
     n = 3 * spec.nodes
@@ -383,7 +454,7 @@ def load_element(source: Path | str | Mapping[str, Any], material: str | None = 
             raise ValueError(f"{name}: K: shape {K.shape}, a {cell} has {n} dofs: expected ({n}, {n})")
     if "W" in raw:
         W = float(np.asarray(raw["W"], dtype=np.float64))
-    return ElementInput(cell, mat, {**file_params, **dict(params or {})}, fields, X, u, order, degree, f, K, W)
+    return ElementInput(cell, mat, {**file_params, **dict(params or {})}, fields, X, u, order, degree, f, K, W, rule)
 
 
 # --- check ---------------------------------------------------------------------------------------------------
@@ -404,7 +475,7 @@ class ElementReport:
     cell: str
     material: str
     node_order: str
-    quadrature_degree: int
+    quadrature: str
     rtol: float
     rows: tuple[ElementError, ...]
     hints: tuple[str, ...]
@@ -414,8 +485,8 @@ class ElementReport:
         return all(r.ok for r in self.rows)
 
     def format(self) -> str:
-        lines = [f"element {self.cell}, law {self.material}, node order {self.node_order}, quadrature degree "
-                 f"{self.quadrature_degree}, rtol {self.rtol:g}; f = dW/du (internal force), K = df/du, node-major",
+        lines = [f"element {self.cell}, law {self.material}, node order {self.node_order}, quadrature "
+                 f"{self.quadrature}, rtol {self.rtol:g}; f = dW/du (internal force), K = df/du, node-major",
                  f"{'quantity':8} {'abs error':>11} {'rel error':>11}  result  worst entry"]
         for r in self.rows:
             lines.append(f"{r.quantity:8} {r.abs_error:11.3e} {r.rel_error:11.3e}  {'ok' if r.ok else 'FAIL':6}  "
@@ -521,7 +592,7 @@ def _alternative_orders(data: ElementInput, ref: ElementReference, rtol: float, 
             continue
         try:
             alt = assemble_element(ref.law, data.params, data.X, data.u, data.cell, data.fields, other,
-                                   data.quadrature_degree)
+                                   data.quadrature_degree, data.quadrature)
         except (ValueError, RuntimeError):
             continue
         refs = {"f": alt.f, "K": alt.K}
@@ -550,7 +621,7 @@ def check_element(source: Path | str | Mapping[str, Any] | ElementInput, rtol: f
     if not (isinstance(rtol, (int, float)) and rtol > 0):
         raise ValueError(f"rtol = {rtol!r}: must be a number > 0")
     ref = assemble_element(data.material, data.params, data.X, data.u, data.cell, data.fields, data.node_order,
-                           data.quadrature_degree)
+                           data.quadrature_degree, data.quadrature)
     diam = float(np.max(np.linalg.norm(data.X[:, None] - data.X[None], axis=2)))
     floors = {"f": 1e-6 * float(np.linalg.norm(ref.K)) * diam, "K": 0.0, "W": 0.0}
     rows = []
@@ -564,7 +635,7 @@ def check_element(source: Path | str | Mapping[str, Any] | ElementInput, rtol: f
         hints = _hints(data, ref, rtol, floors)
         hints += _alternative_orders(data, ref, rtol, floors)
     order = data.node_order if isinstance(data.node_order, str) else str(list(data.node_order))
-    return ElementReport(data.cell, data.material, order, ref.quadrature_degree, rtol, tuple(rows), tuple(hints))
+    return ElementReport(data.cell, data.material, order, ref.quadrature, rtol, tuple(rows), tuple(hints))
 
 
 def write_element_reference(source: Path | str | Mapping[str, Any], out: Path | str, material: str | None = None,
@@ -576,13 +647,18 @@ def write_element_reference(source: Path | str | Mapping[str, Any], out: Path | 
     if data.material is None:
         raise ValueError("material: the file has none; give --material (and --param)")
     ref = assemble_element(data.material, data.params, data.X, data.u, data.cell, data.fields, data.node_order,
-                           data.quadrature_degree)
+                           data.quadrature_degree, data.quadrature)
     out = Path(out)
     order = data.node_order if isinstance(data.node_order, str) else [int(i) for i in data.node_order]
     fields = {k: np.asarray(v, dtype=np.float64).tolist() for k, v in data.fields.items()}
     content = {"cell": data.cell, "node_order": order, "material": data.material, "params": ref.parameters,
-               "fields": fields, "quadrature_degree": ref.quadrature_degree, "X": data.X.tolist(),
-               "u": data.u.tolist(), "f": ref.f.tolist(), "K": ref.K.tolist(), "W": ref.W}
+               "fields": fields, "X": data.X.tolist(), "u": data.u.tolist(), "f": ref.f.tolist(), "K": ref.K.tolist(),
+               "W": ref.W}
+    if data.quadrature is not None:
+        content["quadrature_points"] = data.quadrature[0].tolist()
+        content["quadrature_weights"] = data.quadrature[1].tolist()
+    else:
+        content["quadrature_degree"] = ref.quadrature_degree
     if out.suffix == ".json":
         out.write_text(json.dumps(content, indent=1) + "\n")
     elif out.suffix == ".npz":
@@ -613,7 +689,9 @@ node orders (--node-order, or node_order in the file; default vtk):
   or a permutation p (JSON list): dolfinx node j is your node p[j]
 file (.json object or .npz arrays): cell, node_order, material, params (object; params_json in .npz),
   fields (S 3x3, a0 3, s0 3, alpha scalar: one value per element; arrays S, a0, ... in .npz),
-  quadrature_degree (optional), X (n,3) reference node coordinates, u (n,3) displacements,
+  quadrature_degree (optional), or quadrature_points (m,3) and quadrature_weights (m) of your own rule on
+  the reference cell (tetrahedron 0, e_x, e_y, e_z, weights summing to 1/6; cube [0,1]^3, summing to 1;
+  not with laws that use the polar rotation), X (n,3) reference node coordinates, u (n,3) displacements,
   f (3n) and/or K (3n,3n) yours, W (optional, the element energy)
 """
 
@@ -675,7 +753,7 @@ def main(args: argparse.Namespace) -> int:
                                           args.quadrature_degree)
             if rank0:
                 print(f"wrote {args.emit}: reference f ({len(ref.f)}), K ({len(ref.f)}x{len(ref.f)}), W of a "
-                      f"{ref.cell} of {ref.law}, quadrature degree {ref.quadrature_degree}")
+                      f"{ref.cell} of {ref.law}, quadrature {ref.quadrature}")
             return 0
         report = check_element(args.file, args.rtol, args.material, params or None, order, args.quadrature_degree)
     except (ValueError, OSError, forms.ParameterError) as err:
@@ -689,4 +767,4 @@ def main(args: argparse.Namespace) -> int:
 
 __all__ = ["CELLS", "NODE_ORDERS", "CellType", "ElementError", "ElementInput", "ElementReference", "ElementReport",
            "add_parser", "assemble_element", "cell_type", "check_element", "element_reference", "load_element",
-           "main", "node_permutation", "quadrature_rule", "write_element_reference"]
+           "main", "node_permutation", "quadrature_rule", "custom_rule", "write_element_reference"]
