@@ -227,6 +227,11 @@ def test_tet10_custom_rule_against_numpy(tmp_path: Path) -> None:
     f, K = el.element_reference("neo_hookean", params, X, u, "tet10", quadrature=rule)
     f_np, K_np = isoparametric_numpy(neo_hookean, X, u, rule, tet10_shape_gradients)
     assert rel(f, f_np) < 1e-10 and rel(K, K_np) < 1e-10
+    # a rule that differs in the 9th digit is a different rule (not a cached kernel of the first one)
+    moved = (rule[0] + np.where(np.arange(len(rule[1]))[:, None] == 0, 3e-9, 0.0), rule[1])
+    f_moved, _ = el.element_reference("neo_hookean", params, X, u, "tet10", quadrature=moved)
+    f_moved_np, _ = isoparametric_numpy(neo_hookean, X, u, moved, tet10_shape_gradients)
+    assert rel(f_moved, f_moved_np) < 1e-13 < rel(f_moved, f)
     f4, K4 = el.element_reference("neo_hookean", params, X, u, "tet10", quadrature=four_point_rule())
     f2, K2 = el.element_reference("neo_hookean", params, X, u, "tet10")
     assert rel(f4, f2) < 1e-12 and rel(K4, K2) < 1e-12 and rel(f4, f) > 1e-8  # the rule matters here

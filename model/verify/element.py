@@ -298,8 +298,11 @@ def assemble_element(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.n
         R = polar.rotation
     metadata: dict[str, Any] = {"quadrature_degree": degree}
     if rule is not None:
-        metadata = {"quadrature_rule": "custom", "quadrature_degree": 1, "quadrature_points": rule[0],
-                    "quadrature_weights": rule[1]}
+        # tuples of Python floats: UFL puts str() of each value into the form's signature (the JIT cache key),
+        # which is exact for a float (its repr) but rounds a numpy array to 8 digits
+        metadata = {"quadrature_rule": "custom", "quadrature_degree": 1,
+                    "quadrature_points": tuple(tuple(float(x) for x in point) for point in rule[0]),
+                    "quadrature_weights": tuple(float(w) for w in rule[1])}
     dx = ufl.dx(domain=msh, metadata=metadata)
     v = ufl.TestFunction(space)
     residual = ufl.inner(material.stress(F, R), ufl.grad(v)) * dx
