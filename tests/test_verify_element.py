@@ -273,6 +273,28 @@ def test_rotation_law_is_symmetric_and_consistent() -> None:
         assert np.linalg.norm((fp - fm) / (2 * h) - K[:, k]) < 1e-6 * np.linalg.norm(K[:, k])
 
 
+def test_assembler_reuses_one_cell_for_many_displacements_and_fields() -> None:
+    """ElementAssembler (compiled once, as verify seeds uses it): each u against the numpy P1 element; a changed
+    field S gives what a fresh assembly with that S gives."""
+    X, _ = tet4_element()
+    assembler = el.ElementAssembler("neo_hookean", {"mu": MU, "lmbda": LMBDA}, X, "tet4")
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        u = 0.2 * rng.standard_normal((4, 3))
+        ref = assembler.assemble(u)
+        f_np, K_np = p1_numpy(neo_hookean, X, u)
+        assert rel(ref.f, f_np) < 1e-10 and rel(ref.K, K_np) < 1e-10
+    S1, S2 = np.diag([1.1, 0.9, 1.0]), np.array([[1.3, 0.2, 0.0], [0.2, 0.8, 0.1], [0.0, 0.1, 1.2]])
+    target = el.ElementAssembler("shape_target", {"mu": 1.0, "kappa": 3.0}, X, "tet4", fields={"S": S1})
+    u = 0.2 * rng.standard_normal((4, 3))
+    first = target.assemble(u)
+    second = target.assemble(u, fields={"S": S2})
+    fresh = el.assemble_element("shape_target", {"mu": 1.0, "kappa": 3.0}, X, u, "tet4", fields={"S": S2})
+    assert rel(second.f, fresh.f) < 1e-13 and rel(second.K, fresh.K) < 1e-13 and rel(first.f, second.f) > 1e-3
+    with pytest.raises(ValueError, match="fields: S has shape"):
+        target.assemble(u, fields={"S": np.eye(2)})
+
+
 # --- node orderings ------------------------------------------------------------------------------------------------
 
 def _match(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -206,10 +206,9 @@ def custom_rule(cell: str, points: Any, weights: Any) -> tuple[np.ndarray, np.nd
     return p, w
 
 
-def _field_constants(msh: Any, law: str, needed: tuple[str, ...], fields: Mapping[str, Any] | None) -> dict[str, Any]:
-    """fem.Constant per field the law takes (shapes of forms.metadata.FIELD_SHAPES)."""
-    from dolfinx import fem
-
+def _field_values(law: str, needed: tuple[str, ...], fields: Mapping[str, Any] | None
+                 ) -> dict[str, np.ndarray]:
+    """The value of each field the law takes, validated (shapes of forms.metadata.FIELD_SHAPES)."""
     from forms.metadata import FIELD_SHAPES
 
     fields = dict(fields or {})
@@ -230,8 +229,110 @@ def _field_constants(msh: Any, law: str, needed: tuple[str, ...], fields: Mappin
         if value.shape != FIELD_SHAPES[name] or not np.all(np.isfinite(value)):
             raise ValueError(f"fields: {name} has shape {value.shape}, expected {FIELD_SHAPES[name]} finite numbers "
                              "(one value per element)")
-        out[name] = fem.Constant(msh, value)
+        out[name] = value
     return out
+
+
+class ElementAssembler:
+    """One element's cell, law and quadrature, compiled once; ``assemble(u)`` gives f, K, W at many u.
+
+    The generalisation of the one-tetrahedron assembler of ``verify seeds``: any cell of CELLS, any node
+    numbering, fields as fem.Constants that ``assemble`` may change. Arguments as ``assemble_element``.
+    """
+
+    def __init__(self, law: str, params: Mapping[str, Any], X: np.ndarray, cell: str = "tet4",
+                 fields: Mapping[str, Any] | None = None, node_order: NodeOrder = "vtk",
+                 quadrature_degree: int | None = None, quadrature: tuple[Any, Any] | None = None) -> None:
+        import ufl
+        from dolfinx import fem
+
+        import forms
+        from model.fields.polar import PolarField
+
+        spec = self.spec = cell_type(cell)
+        X = self.X = _nodal(X, "X", spec)
+        self.perm = node_permutation(cell, node_order)
+        degree = _quadrature_degree(spec, quadrature_degree)
+        self.rule = None
+        if quadrature is not None:
+            if quadrature_degree is not None:
+                raise ValueError("quadrature_degree, quadrature_points: give one of the two, not both")
+            self.rule = custom_rule(cell, *quadrature)
+        self.degree = None if self.rule is not None else degree
+        self.law = law
+        entry = forms.resolve_law(law)  # ParameterError naming the law when unknown
+        scale = float(np.max(np.ptp(X, axis=0)))
+        gaps = np.linalg.norm(X[:, None, :] - X[None, :, :], axis=2) + np.eye(spec.nodes) * (scale + 1.0)
+        if scale == 0.0 or gaps.min() <= 1e-9 * scale:
+            a, b = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
+            raise ValueError(f"X: nodes {min(a, b)} and {max(a, b)} coincide (a degenerate {cell})")
+
+        cells = np.arange(spec.nodes, dtype=np.int64)[None, :]
+        msh = self.mesh = compat.create_mesh(MPI.COMM_SELF, cells, X[self.perm], spec.degree, spec.dolfinx_cell)
+        space = compat.function_space(msh, "Lagrange", spec.degree, (3,))
+        # dof node d of the space -> the user's node, matched by position (the dof points are the geometry nodes)
+        points = space.tabulate_dof_coordinates()[:, :3]
+        distance = np.linalg.norm(points[:, None, :] - X[None, :, :], axis=2)
+        user = np.argmin(distance, axis=1)
+        if len(user) != spec.nodes or sorted(user.tolist()) != list(range(spec.nodes)) or \
+                distance[np.arange(len(user)), user].max() > 1e-10 * scale:
+            raise RuntimeError(f"{cell}: could not match dolfinx's dofs to the element's nodes by position")
+        self.dof = (3 * user[:, None] + np.arange(3)).reshape(-1)  # the space's entry k is the user's entry dof[k]
+
+        self.u = fem.Function(space)
+        self._fields = dict(fields or {})
+        self.constants = {name: fem.Constant(msh, value)
+                          for name, value in _field_values(law, entry.fields, fields).items()}
+        self.material = entry.make(**self.constants, **dict(params))
+        F = ufl.Identity(3) + ufl.grad(self.u)
+        R = None
+        self.polar = None
+        if self.material.needs_rotation:
+            if self.rule is not None:
+                raise ValueError(f"quadrature_points: {law} uses the polar rotation, stored at basix's default "
+                                 "points; give quadrature_degree instead of a rule of your own")
+            self.polar = PolarField(msh, self.material.rotation_argument(F), degree)
+            R = self.polar.rotation
+        metadata: dict[str, Any] = {"quadrature_degree": degree}
+        if self.rule is not None:
+            # tuples of Python floats: UFL puts str() of each value into the form's signature (the JIT cache key),
+            # which is exact for a float (its repr) but rounds a numpy array to 8 digits
+            metadata = {"quadrature_rule": "custom", "quadrature_degree": 1,
+                        "quadrature_points": tuple(tuple(float(x) for x in point) for point in self.rule[0]),
+                        "quadrature_weights": tuple(float(w) for w in self.rule[1])}
+        dx = ufl.dx(domain=msh, metadata=metadata)
+        residual = ufl.inner(self.material.stress(F, R), ufl.grad(ufl.TestFunction(space))) * dx
+        self.forms = (fem.form(residual), fem.form(ufl.derivative(residual, self.u, ufl.TrialFunction(space))),
+                      fem.form(self.material.energy(F, R) * dx))
+
+    def assemble(self, u: np.ndarray, fields: Mapping[str, Any] | None = None) -> ElementReference:
+        """f, K, W at the nodal displacements u (n, 3) in the user's numbering; ``fields`` replace the values
+        of the law's fields given so far."""
+        from dolfinx import fem
+        from dolfinx.fem import petsc as fem_petsc
+
+        u = _nodal(u, "u", self.spec)
+        if fields:
+            values = _field_values(self.law, tuple(self.constants), {**self._fields, **fields})
+            for name, value in values.items():
+                self.constants[name].value[...] = value
+            self._fields.update(fields)
+        self.u.x.array[:] = u.reshape(-1)[self.dof]
+        if self.polar is not None:
+            self.polar.update()
+        n = 3 * self.spec.nodes
+        vector = fem_petsc.assemble_vector(self.forms[0])
+        matrix = fem_petsc.assemble_matrix(self.forms[1])
+        matrix.assemble()
+        f = np.empty(n)
+        K = np.empty((n, n))
+        f[self.dof] = vector.array
+        K[np.ix_(self.dof, self.dof)] = matrix.convert("dense").getDenseArray()
+        vector.destroy()
+        matrix.destroy()
+        W = float(fem.assemble_scalar(self.forms[2]))
+        return ElementReference(self.spec.name, self.law, tuple(int(i) for i in self.perm), self.degree, f, K, W,
+                                self.material.parameters(), len(self.rule[1]) if self.rule is not None else 0)
 
 
 def assemble_element(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.ndarray, cell: str = "tet4",
@@ -246,80 +347,10 @@ def assemble_element(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.n
     ``quadrature``: instead, a rule of your own, (points (m, 3), weights (m,)) on the reference cell
     (``custom_rule``; not for laws with a polar rotation, whose rotation lives on basix's default points).
     """
-    import ufl
-    from dolfinx import fem
-    from dolfinx.fem import petsc as fem_petsc
-
-    import forms
-    from model.fields.polar import PolarField
-
     spec = cell_type(cell)
-    X = _nodal(X, "X", spec)
-    u = _nodal(u, "u", spec)
-    perm = node_permutation(cell, node_order)
-    degree = _quadrature_degree(spec, quadrature_degree)
-    rule = None
-    if quadrature is not None:
-        if quadrature_degree is not None:
-            raise ValueError("quadrature_degree, quadrature_points: give one of the two, not both")
-        rule = custom_rule(cell, *quadrature)
-    entry = forms.resolve_law(law)  # ParameterError naming the law when unknown
-    scale = float(np.max(np.ptp(X, axis=0)))
-    gaps = np.linalg.norm(X[:, None, :] - X[None, :, :], axis=2) + np.eye(spec.nodes) * (scale + 1.0)
-    if scale == 0.0 or gaps.min() <= 1e-9 * scale:
-        a, b = np.unravel_index(int(np.argmin(gaps)), gaps.shape)
-        raise ValueError(f"X: nodes {min(a, b)} and {max(a, b)} coincide (a degenerate {cell})")
-
-    msh = compat.create_mesh(MPI.COMM_SELF, np.arange(spec.nodes, dtype=np.int64)[None, :], X[perm], spec.degree,
-                             spec.dolfinx_cell)
-    space = compat.function_space(msh, "Lagrange", spec.degree, (3,))
-    # dof node d of the space -> the user's node, matched by position (the space's dof points are the geometry nodes)
-    points = space.tabulate_dof_coordinates()[:, :3]
-    distance = np.linalg.norm(points[:, None, :] - X[None, :, :], axis=2)
-    user = np.argmin(distance, axis=1)
-    if len(user) != spec.nodes or sorted(user.tolist()) != list(range(spec.nodes)) or \
-            distance[np.arange(len(user)), user].max() > 1e-10 * scale:
-        raise RuntimeError(f"{cell}: could not match dolfinx's dofs to the element's nodes by position")
-    dof = (3 * user[:, None] + np.arange(3)).reshape(-1)  # the space's entry k is the user's entry dof[k]
-
-    uh = fem.Function(space)
-    uh.x.array[:] = u.reshape(-1)[dof]
-    constants = _field_constants(msh, law, entry.fields, fields)
-    material = entry.make(**constants, **dict(params))
-    F = ufl.Identity(3) + ufl.grad(uh)
-    R = None
-    polar = None
-    if material.needs_rotation:
-        if rule is not None:
-            raise ValueError(f"quadrature_points: {law} uses the polar rotation, stored at basix's default points; "
-                             "give quadrature_degree instead of a rule of your own")
-        polar = PolarField(msh, material.rotation_argument(F), degree)
-        polar.update()
-        R = polar.rotation
-    metadata: dict[str, Any] = {"quadrature_degree": degree}
-    if rule is not None:
-        # tuples of Python floats: UFL puts str() of each value into the form's signature (the JIT cache key),
-        # which is exact for a float (its repr) but rounds a numpy array to 8 digits
-        metadata = {"quadrature_rule": "custom", "quadrature_degree": 1,
-                    "quadrature_points": tuple(tuple(float(x) for x in point) for point in rule[0]),
-                    "quadrature_weights": tuple(float(w) for w in rule[1])}
-    dx = ufl.dx(domain=msh, metadata=metadata)
-    v = ufl.TestFunction(space)
-    residual = ufl.inner(material.stress(F, R), ufl.grad(v)) * dx
-    jacobian = ufl.derivative(residual, uh, ufl.TrialFunction(space))
-    energy = material.energy(F, R) * dx
-    vector = fem_petsc.assemble_vector(fem.form(residual))
-    matrix = fem_petsc.assemble_matrix(fem.form(jacobian))
-    matrix.assemble()
-    f = np.empty(3 * spec.nodes)
-    K = np.empty((3 * spec.nodes, 3 * spec.nodes))
-    f[dof] = vector.array
-    K[np.ix_(dof, dof)] = matrix.convert("dense").getDenseArray()
-    vector.destroy()
-    matrix.destroy()
-    W = float(fem.assemble_scalar(fem.form(energy)))
-    return ElementReference(cell, law, tuple(int(i) for i in perm), None if rule is not None else degree, f, K, W,
-                            material.parameters(), len(rule[1]) if rule is not None else 0)
+    _nodal(X, "X", spec)
+    _nodal(u, "u", spec)
+    return ElementAssembler(law, params, X, cell, fields, node_order, quadrature_degree, quadrature).assemble(u)
 
 
 def element_reference(law: str, params: Mapping[str, Any], X: np.ndarray, u: np.ndarray, cell: str = "tet4",
@@ -550,12 +581,12 @@ def _hints(data: ElementInput, ref: ElementReference, rtol: float, floors: dict[
             continue
         n = len(ref.f) // 3
         blocked = (3 * (np.arange(3 * n) % n) + np.arange(3 * n) // n)  # component-major index -> node-major
-        if (a[np.ix_(blocked, blocked)] if q == "K" else a[blocked]).shape == r.shape:
-            moved = a[np.ix_(np.argsort(blocked), np.argsort(blocked))] if q == "K" else a[np.argsort(blocked)]
-            if _relative(moved, r, floors[q]) <= rtol:
-                hints.append(f"{q} agrees in component-major order (all x, then all y, then all z): the reference is "
-                             "node-major (x, y, z of node 0, then node 1, ...)")
-                continue
+        back = np.argsort(blocked)  # yours, component-major, put back into node-major order
+        moved = a[np.ix_(back, back)] if q == "K" else a[back]
+        if _relative(moved, r, floors[q]) <= rtol:
+            hints.append(f"{q} agrees in component-major order (all x, then all y, then all z): the reference is "
+                         "node-major (x, y, z of node 0, then node 1, ...)")
+            continue
         if q == "K" and np.linalg.norm(a - a.T) > rtol * np.linalg.norm(a):
             hints.append(f"your K is not symmetric (||K - K^T|| / ||K|| = "
                          f"{np.linalg.norm(a - a.T) / np.linalg.norm(a):.2e}): the stiffness of a hyperelastic element "
@@ -768,6 +799,7 @@ def main(args: argparse.Namespace) -> int:
     return 0 if report.ok else 1
 
 
-__all__ = ["CELLS", "NODE_ORDERS", "CellType", "ElementError", "ElementInput", "ElementReference", "ElementReport",
+__all__ = ["CELLS", "NODE_ORDERS", "CellType", "ElementAssembler", "ElementError",
+            "ElementInput", "ElementReference", "ElementReport",
            "add_parser", "assemble_element", "cell_type", "check_element", "element_reference", "load_element",
            "main", "node_permutation", "quadrature_rule", "custom_rule", "write_element_reference"]
