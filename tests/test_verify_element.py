@@ -405,6 +405,29 @@ def test_check_hints(tmp_path: Path) -> None:
     assert el.check_element(_file(tmp_path, "gmsh_ok", Xg, ug, fg, Kg, cell="tet10", order="gmsh")).ok
 
 
+def test_undefined_tangent_leaves_K_out(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the law says its tangent is undefined at a quadrature point (Law.tangent_undefined), K is not
+    compared (a note with the count) and f still is."""
+    from forms.isotropic import NeoHookean
+
+    X, u = tet4_element()
+    f, K = p1_numpy(neo_hookean, X, u)
+    seen = []
+
+    def undefined(self, F, **fields):
+        seen.append(np.array(F))
+        return np.ones(len(F), dtype=bool)
+
+    monkeypatch.setattr(NeoHookean, "tangent_undefined", undefined)
+    report = el.check_element(_file(tmp_path, "undefined", X, u, f, 2 * K))
+    assert report.ok and [r.quantity for r in report.rows] == ["f"], report.format()
+    assert any("K not checked" in h and "1 of 1 quadrature points" in h for h in report.hints)
+    F_expected = I3 + u.T @ np.vstack([-np.linalg.inv((X[1:] - X[0]).T).sum(axis=0), np.linalg.inv((X[1:] - X[0]).T)])
+    assert np.allclose(seen[-1][0], F_expected, atol=1e-12)  # the law is asked at the element's own F
+    with pytest.raises(ValueError, match="K not checked"):
+        el.check_element(_file(tmp_path, "only_K", X, u, None, K))
+
+
 def test_check_bad_input_names_the_key(tmp_path: Path) -> None:
     X, u = tet4_element()
     f, K = p1_numpy(neo_hookean, X, u)
