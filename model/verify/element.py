@@ -30,7 +30,8 @@ Cells and node orderings (``node_order``: the user's numbering of the cell's nod
   (5 - sqrt 5)/20, b = 1 - 3 a, weights 1/24 of the reference volume 1/6), the usual rule of tet10 codes,
   exact for the linear-elastic stiffness of a straight-sided tet10. The integrand of a nonlinear law is not
   a polynomial: give the degree of your own rule (``quadrature_degree``, basix's default rule of that
-  degree) to compare like with like.
+  degree), or the rule itself (``quadrature`` = (points, weights), ``custom_rule``), to compare like
+  with like.
 - ``hex8``: the 8-node hexahedron, Q1 (trilinear), with 2x2x2 Gauss points (quadrature degree 3 in
   basix: Gauss-Jacobi = Gauss-Legendre with 2 points per direction, at (1 -+ 1/sqrt 3)/2 of [0, 1]).
     vtk (VTK_HEXAHEDRON = 12) and gmsh (type 5): 0:(0,0,0) 1:(1,0,0) 2:(1,1,0) 3:(0,1,0), then 4-7 the
