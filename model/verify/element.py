@@ -57,8 +57,6 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from model import compat
-
 
 @dataclass(frozen=True)
 class CellType:
@@ -251,6 +249,7 @@ class ElementAssembler:
         from dolfinx import fem
 
         import forms
+        from model import compat
         from model.fields.polar import PolarField
 
         spec = self.spec = cell_type(cell)
@@ -338,6 +337,8 @@ class ElementAssembler:
         vector.destroy()
         matrix.destroy()
         W = float(fem.assemble_scalar(self.forms[2]))
+        from model import compat
+
         F = compat.evaluate(self._F_at_points, self.mesh, np.array([0], dtype=np.int32)).reshape(-1, 3, 3)
         fields = {name: np.broadcast_to(np.asarray(c.value), (len(F), *np.shape(c.value)))
                   for name, c in self.constants.items()}
@@ -750,20 +751,6 @@ file (.json object or .npz arrays): cell, node_order, material, params (object; 
 """
 
 
-def _parse_params(items: list[str]) -> dict[str, Any]:
-    """--param KEY=VALUE: numbers as floats (inf allowed), anything else as a string (isotropic=stvk)."""
-    params: dict[str, Any] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--param {item!r}: write KEY=VALUE")
-        try:
-            params[key] = float(value)
-        except ValueError:
-            params[key] = value
-    return params
-
-
 def _parse_order(text: str | None) -> NodeOrder | None:
     if text is None or not text.strip().startswith("["):
         return text
@@ -800,7 +787,9 @@ def main(args: argparse.Namespace) -> int:
 
     rank0 = MPI.COMM_WORLD.rank == 0
     try:
-        params = _parse_params(args.param)
+        from model.verify.commands import parse_params
+
+        params = parse_params(args.param)
         order = _parse_order(args.node_order)
         if args.emit is not None:
             ref = write_element_reference(args.file, args.emit, args.material, params or None, order,

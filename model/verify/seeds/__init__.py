@@ -76,7 +76,6 @@ from model.verify.seeds.thesis import (
     LAMBDA_THESIS,
     MU_THESIS,
     TET,
-    OneCell,
     _element_rows,
     _euler_rows,
     _membrane_rows,
@@ -93,7 +92,7 @@ from model.verify.seeds.thesis import (
 )
 
 __all__ = ["ELEMENT_SAMPLES", "KLAR", "LAMBDA_THESIS", "MU_KLAR", "MU_THESIS", "RTOL", "SAMPLES", "SEED", "TET",
-           "THESIS", "OneCell", "SeedRow", "check_psd_projection", "fibre_stretch_np", "format_table", "irving_Bm",
+           "THESIS", "SeedRow", "check_psd_projection", "fibre_stretch_np", "format_table", "irving_Bm",
            "klar_eq1_energy", "klar_eq2_corrected", "klar_eq2_energy", "klar_eq3_stress", "klar_eq4_tangent",
            "klar_eq5_rotation_differential", "klar_rotation", "klar_svd", "muscle_fibre_derivatives", "run_seeds",
            "seed_rows", "thesis_eq4_5_forces", "thesis_eq4_5_stiffness", "thesis_eq4_8_dlbar",

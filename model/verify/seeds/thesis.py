@@ -28,10 +28,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from mpi4py import MPI
 
-from model import compat
+import forms
 from model.verify import ReferenceEvaluator, deformation_samples, field_samples
+from model.verify.element import ElementAssembler
 from model.verify.seeds.common import (
     _T,
     ELEMENT_SAMPLES,
@@ -358,73 +358,6 @@ def thesis_eq4_5_stiffness(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     return K.reshape(len(A), 12, 12)
 
 
-class OneCell:
-    """Residual vector and Jacobian matrix of one law assembled by dolfinx on a one-tetrahedron mesh.
-
-    Residual r(u; v) = P(F) : grad v dx with P = law.stress (forms/), Jacobian = ufl.derivative,
-    P1 displacement, one quadrature point (the integrands are constant for affine u), polar
-    rotations through model.fields.polar.PolarField as in the simulations. r = dW/du, the
-    negative of the forces G of eq. 4.5.
-    """
-
-    def __init__(self, material: str, params: dict[str, float]) -> None:
-        import ufl
-        from dolfinx import fem
-
-        import forms
-        from model.fields.polar import PolarField
-
-        self.mesh = compat.create_mesh(MPI.COMM_SELF, np.array([[0, 1, 2, 3]], dtype=np.int64), TET)
-        self.space = compat.function_space(self.mesh, "Lagrange", 1, (3,))
-        self.u = fem.Function(self.space)
-        extra = {}
-        self.S = None
-        if "S" in forms.FIELDS.get(material, ()):
-            self.S = fem.Constant(self.mesh, np.eye(3))
-            extra["S"] = self.S
-        law = forms.make_law(material, **extra, **params)
-        F = ufl.Identity(3) + ufl.grad(self.u)
-        self.polar = None
-        R = None
-        if law.needs_rotation:
-            self.polar = PolarField(self.mesh, law.rotation_argument(F), 1)
-            R = self.polar.rotation
-        dx = ufl.dx(metadata={"quadrature_degree": 1})
-        residual = ufl.inner(law.stress(F, R), ufl.grad(ufl.TestFunction(self.space))) * dx
-        self.forms = (fem.form(residual),
-                      fem.form(ufl.derivative(residual, self.u, ufl.TrialFunction(self.space))))
-        # dof (node, component) -> hand ordering (vertex, component), nodes matched by position
-        nodes = self.space.tabulate_dof_coordinates()
-        vertex = np.argmin(np.linalg.norm(nodes[:, None, :] - TET[None, :, :], axis=2), axis=1)
-        if sorted(vertex) != [0, 1, 2, 3]:
-            raise RuntimeError("one-cell mesh: could not match the dof nodes to the tetrahedron's vertices")
-        self.perm = (3 * vertex[:, None] + np.arange(3)).reshape(-1)  # dof d is hand index perm[d]
-
-    def assemble(self, F: np.ndarray, S: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(residual (12,), Jacobian (12, 12)) in (vertex, component) order for u = (F - I) X."""
-        from dolfinx.fem import petsc as fem_petsc
-
-        H = F - I3
-        self.u.interpolate(lambda x: H @ x)
-        if self.S is not None:
-            self.S.value[:] = S
-        if self.polar is not None:
-            self.polar.update()
-        b = fem_petsc.assemble_vector(self.forms[0])
-        A = fem_petsc.assemble_matrix(self.forms[1])
-        A.assemble()
-        dense = A.convert("dense").getDenseArray().copy()
-        vec = b.array.copy()
-        b.destroy()
-        A.destroy()
-        r = np.empty(12)
-        K = np.empty((12, 12))
-        r[self.perm] = vec
-        K[np.ix_(self.perm, self.perm)] = dense
-        return r, K
-
-
-
 def _thesis_rows(F: np.ndarray, ref: Quantities) -> list[SeedRow]:
     mu, lam = MU_THESIS, LAMBDA_THESIS
     E = _green(F)
@@ -538,9 +471,12 @@ def _element_rows() -> list[SeedRow]:
     ]
     rows = []
     for material, params, hand, (stress, tangent) in cases:
-        cell = OneCell(material, params)
-        assembled = [cell.assemble(F[n], S[n]) for n in range(ELEMENT_SAMPLES)]
-        ref = {"P": np.array([r for r, _ in assembled]), "A": np.array([K for _, K in assembled])}
+        # the one-tetrahedron element of verify element; u = (F - I) X at the nodes, f = dW/du (the residual)
+        cell = ElementAssembler(material, params, TET, "tet4",
+                                fields={"S": np.eye(3)} if "S" in forms.FIELDS.get(material, ()) else None)
+        assembled = [cell.assemble(TET @ (F[n] - I3).T, {"S": S[n]} if cell.constants else None)
+                     for n in range(ELEMENT_SAMPLES)]
+        ref = {"P": np.array([a.f for a in assembled]), "A": np.array([a.K for a in assembled])}
         forces = thesis_eq4_5_forces(stress(F), TET).reshape(-1, 12)
         stiffness = thesis_eq4_5_stiffness(tangent(F), TET)
         # the residual is dW/du = -G, its Jacobian -dG/dq (G are forces; the element vector in the "P" slot
