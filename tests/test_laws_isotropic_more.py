@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import pytest
 import ufl
-from conftest import example, run_raw
+from conftest import EXAMPLES, example, run_raw
 from dolfinx import fem
 from mpi4py import MPI
 from scipy.optimize import fsolve
@@ -346,3 +346,28 @@ def test_uniaxial_run(law: str, params: dict[str, Any], formulation: str, shared
     for step in steps:
         la, lt = uniaxial(law, params, step["load_factor"] * traction)
         np.testing.assert_allclose(step["probes"]["corner"], [la - 1.0, lt - 1.0, lt - 1.0], rtol=1e-8)
+
+
+@pytest.mark.parametrize("change,key,fragment", [
+    ({"law": "stable_neo_hookean", "E": 1.0e4, "nu": 0.3, "variant": "pixar"}, "material[0].variant",
+     "stable_neo_hookean: variant = 'pixar', must be one of rest_stable, paper"),
+    ({"law": "stable_neo_hookean", "E": 1.0e4, "nu": 0.3, "variant": 2}, "material[0].variant",
+     "variant = 2, must be one of rest_stable, paper"),
+    ({"law": "yeoh", "c1": 1.0e3, "kappa": "big"}, "material[0].kappa", "must be a number, got 'big'"),
+    ({"law": "yeoh", "c1": 1.0e3}, "material[0].kappa", "yeoh: kappa is missing"),
+    ({"law": "arap", "mu": 1.0e3, "mixed": True}, "material[0].law", "'arap' has no volumetric term"),
+])
+def test_configuration_words_and_errors(change: dict[str, Any], key: str, fragment: str) -> None:
+    """A choice is a word in a configuration file (variant = "paper" builds), anything else is named by its key."""
+    from model.config import ConfigError, parse
+
+    raw = example("uniaxial")
+    mixed = change.pop("mixed", False)
+    if mixed:
+        raw["discretization"] = {"degree": 2, "formulation": "mixed"}
+    raw["material"] = [{"region": "all", **change}]
+    with pytest.raises(ConfigError) as info:
+        parse(raw, EXAMPLES)
+    assert str(info.value).startswith(key) and fragment in str(info.value), str(info.value)
+    raw["material"][0] = {"region": "all", "law": "stable_neo_hookean", "E": 1.0e4, "nu": 0.3, "variant": "paper"}
+    assert parse(raw, EXAMPLES).materials[0].law.variant == "paper"
