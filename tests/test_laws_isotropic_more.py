@@ -371,3 +371,31 @@ def test_configuration_words_and_errors(change: dict[str, Any], key: str, fragme
     assert str(info.value).startswith(key) and fragment in str(info.value), str(info.value)
     raw["material"][0] = {"region": "all", "law": "stable_neo_hookean", "E": 1.0e4, "nu": 0.3, "variant": "paper"}
     assert parse(raw, EXAMPLES).materials[0].law.variant == "paper"
+
+
+@pytest.mark.parametrize("variant", ["rest_stable", "paper"])
+def test_snh_equals_hobak(variant: str) -> None:
+    """HOBAK's own forms (SNH.cpp, SNH_WITH_BARRIER.cpp) written in numpy with its reparametrisations:
+    psi_H = (ms/2)(Ic - 3) + (ls/2)(J - a)^2 [- (ms/2) ln(Ic + 1)], P_H = ms F + ls (J - a) cof F
+    [- ms F / (Ic + 1)], a = 1 + ms / ls (rest_stable) or 1 + 3 ms / (4 ls) (paper). P equals ours; psi too
+    for paper, and for rest_stable up to HOBAK's constant ms^2 / (2 ls) (its (J - a)^2 expanded about 1)."""
+    mu, lmbda = 3.0, 7.0
+    F, _ = hard_samples(inverted=True)
+    ref = reference("stable_neo_hookean", {"mu": mu, "lmbda": lmbda, "variant": variant}, F)
+    if variant == "rest_stable":
+        ms, ls = mu, lmbda + mu
+        a = 1.0 + ms / ls
+    else:
+        ms, ls = 4.0 * mu / 3.0, lmbda + 5.0 * mu / 6.0
+        a = 1.0 + ms / ls - ms / (4.0 * ls)
+    Ic, J = np.einsum("nij,nij->n", F, F), np.linalg.det(F)
+    cof = np.stack([np.cross(F[:, :, 1], F[:, :, 2]), np.cross(F[:, :, 2], F[:, :, 0]),
+                    np.cross(F[:, :, 0], F[:, :, 1])], axis=2)  # dJ/dF, column by column
+    psi = 0.5 * ms * (Ic - 3.0) + 0.5 * ls * (J - a) ** 2
+    P = ms * F + (ls * (J - a))[:, None, None] * cof
+    if variant == "paper":
+        psi = psi - 0.5 * ms * np.log(Ic + 1.0)
+        P = P - (ms / (Ic + 1.0))[:, None, None] * F
+    shift = ms**2 / (2.0 * ls) if variant == "rest_stable" else 0.0
+    np.testing.assert_allclose(ref["psi"] + shift, psi, rtol=1e-12, atol=1e-12 * mu)
+    np.testing.assert_allclose(ref["P"], P, rtol=1e-12, atol=1e-12 * mu)
