@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from forms.isotropic import Corotated, MooneyRivlin, NeoHookean, StVenantKirchhoff
+from forms.isotropic_more import SNH_VARIANTS, Arap, FixedCorotated, StableNeoHookean, Yeoh
 from forms.law import ParameterError
 from forms.metadata import LawEntry, Parameter
 from forms.metadata import laws_markdown as _laws_markdown
@@ -70,6 +71,40 @@ BUILT_IN: tuple[LawEntry, ...] = (
     LawEntry("corotated", "Corotated linear elasticity, R(F) the rotation of the polar decomposition of F.",
              "mu ||F - R(F)||^2 + (lmbda/2)(J - 1)^2", _lame(), Corotated, parameter_sets=LAME_SETS,
              bulk_parameter="lmbda", volume_constraint="J - 1"),
+    LawEntry("fixed_corotated", "Fixed corotated (Stomakhin et al. 2012, with the rotation variant of the SVD): "
+             "corotated under its graphics name, the same code and values.",
+             "mu ||F - R(F)||^2 + (lmbda/2)(J - 1)^2", _lame(), FixedCorotated, parameter_sets=LAME_SETS,
+             bulk_parameter="lmbda", volume_constraint="J - 1",
+             notes=("mu ||F - R||^2 = mu sum_i (sigma_i - 1)^2 with signed singular values: equal to `corotated` "
+                    "with the same (mu, lmbda).",)),
+    LawEntry("arap", "As-rigid-as-possible (HOBAK's ARAP.cpp, Kim & Eberle 2022): corotated with lmbda = 0, the same "
+             "code and values.",
+             "mu ||F - R(F)||^2",
+             (Parameter("mu", "stiffness of the distance to the rotation, HOBAK's mu (no factor 1/2: corotated's mu)",
+                        PA, lower=0.0),),
+             Arap, notes=("No volumetric term (kappa = 0): displacement formulation only.",)),
+    LawEntry("stable_neo_hookean", "Stable Neo-Hookean (Smith, de Goes & Kim 2018), defined for inverted F too. "
+             "(mu, lmbda) or (E, nu) are the Lame constants of linear elasticity: the law reparametrises them to "
+             "(ms, ls) so that its small-strain tangent is linear elasticity's.",
+             "rest_stable: (ms/2)(Ic - 3) - ms (J - 1) + (ls/2)(J - 1)^2, ms = mu, ls = lmbda + mu; "
+             "paper: (ms/2)(Ic - 3) + (ls/2)(J - alpha)^2 - (ms/2) ln(Ic + 1), ms = 4 mu / 3, ls = lmbda + 5 mu / 6, "
+             "alpha = 1 + 3 ms / (4 ls); Ic = ||F||^2",
+             (Parameter("variant", "rest_stable: Kim & Eberle 2022's form (HOBAK's SNH); paper: Smith et al. 2018 "
+                        "eq. 14 with the ln(Ic + 1) term", "choice", default="rest_stable", choices=SNH_VARIANTS),
+              *_lame()[:3],
+              Parameter("lmbda", "first Lame parameter of linear elasticity (kappa = ls of the mixed split)", PA,
+                        constraint="> -2 mu / 3", infinite=True)),
+             StableNeoHookean, parameter_sets=LAME_SETS, bulk_parameter="lmbda", volume_constraint="J - 1",
+             kappa="ls (lmbda + mu, or lmbda + 5 mu / 6 for paper)",
+             notes=("P(I) = 0 for both variants; psi(I) = 0 (rest_stable), 9 ms^2 / (32 ls) - ms ln 2 (paper).",)),
+    LawEntry("yeoh", "Yeoh (1993), FEBio's \"Yeoh\" isochoric part (three terms) with FEBio's default volumetric "
+             "term U(J) = (k/2)(ln J)^2, k = kappa.",
+             "c1 (Ibar1 - 3) + c2 (Ibar1 - 3)^2 + c3 (Ibar1 - 3)^3 + (kappa/2)(ln J)^2",
+             (Parameter("c1", "coefficient of (Ibar1 - 3): the small-strain shear modulus is 2 c1", PA, lower=0.0),
+              Parameter("c2", "coefficient of (Ibar1 - 3)^2", PA, default=0.0),
+              Parameter("c3", "coefficient of (Ibar1 - 3)^3", PA, default=0.0),
+              Parameter("kappa", "bulk modulus (FEBio's k)", PA, lower=0.0, infinite=True)),
+             Yeoh, bulk_parameter="kappa", volume_constraint="ln J"),
     LawEntry("shape_target", "Shape targeting (Klar et al. 2020, after Phace): distance of F to the rotated "
              "target S, R* = argmin over R in SO(3) of ||F - R S||_F.",
              "mu ||F - R* S||_F^2 + (kappa/2)(J - det S)^2",

@@ -41,20 +41,9 @@ def main(argv: list[str] | None = None) -> int:
     run_parser = sub.add_parser("run", help="run a TOML configuration")
     run_parser.add_argument("config", type=Path)
     run_parser.add_argument("--out", type=Path, default=None, help="output directory (overrides output.dir)")
-    verify = sub.add_parser("verify", help="reference values of psi, P, A and checks of hand-derived formulas")
-    vsub = verify.add_subparsers(dest="verify_command", required=True)
-    emit_parser = vsub.add_parser("emit", help="write reference psi, P, A computed through the UFL forms")
-    emit_parser.add_argument("--material", required=True)
-    emit_parser.add_argument("--param", action="append", default=[], metavar="KEY=VALUE")
-    emit_parser.add_argument("--samples", type=int, required=True)
-    emit_parser.add_argument("--seed", type=int, required=True)
-    emit_parser.add_argument("--out", type=Path, required=True)
-    emit_parser.add_argument("--inverted", action="store_true", help="also emit inverted F (det F < 0)")
-    check_parser = vsub.add_parser("check", help="compare a file's psi, P and/or A with the reference")
-    check_parser.add_argument("file", type=Path)
-    check_parser.add_argument("--rtol", type=float, default=1e-8)
-    seeds_parser = vsub.add_parser("seeds", help="check the formulas printed in the seed documents")
-    seeds_parser.add_argument("--json", type=Path, default=None)
+    from model.verify.commands import add_parser as add_verify_parser
+
+    add_verify_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
                                    "generated from model.config")
     schema_parser.add_argument("--out", type=Path, default=None,
@@ -101,36 +90,7 @@ def _schema(args: argparse.Namespace) -> int:
     return 0
 
 
-def _parse_params(items: list[str]) -> dict[str, float]:
-    params = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--param {item!r}: write KEY=VALUE")
-        try:
-            params[key] = float(value)
-        except ValueError:
-            raise ValueError(f"--param {key}: {value!r} is not a number") from None
-    return params
-
-
 def _verify(args: argparse.Namespace) -> int:
-    import forms
-    from model import verify
+    from model.verify.commands import main as verify_main
 
-    if args.verify_command == "seeds":
-        from model.verify.seeds import run_seeds
-
-        return run_seeds(args.json)
-    try:
-        if args.verify_command == "emit":
-            data = verify.emit(args.material, _parse_params(args.param), args.samples, args.seed, args.out,
-                               args.inverted)
-            print(f"wrote {args.out}: {len(data['F'])} samples of {args.material} ({data['params_json']})")
-            return 0
-        rows = verify.check(args.file, args.rtol)
-    except (ValueError, OSError, forms.ParameterError) as err:
-        _error(str(err))
-        return 2
-    print(verify.format_rows(rows))
-    return 0 if all(r.ok for r in rows) else 1
+    return verify_main(args)

@@ -76,7 +76,7 @@ def element(family: str, cell: str, degree: int, shape: Shape = ()) -> Any:
     shape = tuple(shape)
     if not LEGACY:
         return basix.ufl.element(family, cell, degree, shape=shape or None)
-    ucell = getattr(ufl, cell)
+    ucell = getattr(ufl, cell) if isinstance(cell, str) else cell  # a ufl.Cell: a manifold's (gdim 3 triangle)
     if shape == ():
         return ufl.FiniteElement(family, ucell, degree)
     if len(shape) == 1:
@@ -108,7 +108,7 @@ def function_space(msh: dmesh.Mesh, family: Any, degree: int | None = None, shap
     """A function space on ``msh``: ``function_space(msh, "Lagrange", 1, (3,))``, or of an element made
     here (``function_space(msh, mixed_element([...]))``)."""
     if degree is not None:
-        family = element(family, cell_name(msh), degree, shape)
+        family = element(family, msh.ufl_cell() if LEGACY else cell_name(msh), degree, shape)
     if LEGACY:
         return fem.FunctionSpace(msh, family)
     return fem.functionspace(msh, family)
@@ -135,14 +135,16 @@ def cell_name(msh: dmesh.Mesh) -> str:
 
 # --- meshes and tags ----------------------------------------------------------------------------------
 
-def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 1) -> dmesh.Mesh:
+def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 1,
+                cell: str = "tetrahedron") -> dmesh.Mesh:
     """A tetrahedral mesh with Lagrange geometry of ``degree`` (cells in dolfinx's node order);
-    every rank but the one holding the data passes empty arrays."""
+    every rank but the one holding the data passes empty arrays. ``cell="triangle"``: a surface
+    (manifold) mesh of triangles in 3D (gdim 3, tdim 2)."""
     gdim = 3
     if LEGACY:
-        domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, degree))
+        domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.Cell(cell, geometric_dimension=gdim), degree, dim=gdim))
     else:
-        domain = ufl.Mesh(basix.ufl.element("Lagrange", "tetrahedron", degree, shape=(gdim,)))
+        domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, degree, shape=(gdim,)))
     return dmesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), np.asarray(points, dtype=np.float64), domain)
 
 

@@ -33,6 +33,8 @@ VERIFY_PARAMS: dict[str, dict[str, Any]] = {
     "stvk": {"E": 1e4, "nu": 0.3}, "neo_hookean": {"E": 1e4, "nu": 0.3},
     "mooney_rivlin": {"c1": 1500.0, "c2": 400.0, "K": 8000.0}, "corotated": {"E": 1e4, "nu": 0.3},
     "shape_target": {"mu": 1e3, "kappa": 1e4}, "volume": {"kappa": 1e4}, "muscle": {}, "tendon": {},
+    "fixed_corotated": {"E": 1e4, "nu": 0.3}, "arap": {"mu": 1e3},
+    "stable_neo_hookean": {"E": 1e4, "nu": 0.3, "variant": "paper"}, "yeoh": {"c1": 1500.0, "c2": -50.0, "kappa": 1e4},
 }
 VERIFY_SAMPLES = 40
 

@@ -36,7 +36,7 @@ def test_assembly_benchmark_quick_runs_every_law(shared_tmp: Path) -> None:
         assert r["quadrature_degree"] == 2 * r["degree"], r
         for key in ("residual_cells_per_s", "jacobian_cells_per_s", "residual_norm", "jacobian_norm"):
             assert math.isfinite(r[key]) and r[key] > 0, (r["law"], key, r[key])
-        rotating = r["law"] in ("corotated", "shape_target")
+        rotating = forms.REGISTRY[r["law"]].law.needs_rotation  # corotated, its aliases, shape_target
         assert (r["polar_update_s"] > 0) == rotating, r
     newton = {r["law"]: r for r in figures["newton"]}
     assert list(newton) == laws

@@ -29,8 +29,8 @@ from forms.metadata import FIELD_MEANINGS
 from model import compat
 
 inf = math.inf
-BUILT_IN = ["stvk", "neo_hookean", "mooney_rivlin", "corotated", "shape_target", "volume", "muscle", "tendon",
-            "ogden"]
+BUILT_IN = ["stvk", "neo_hookean", "mooney_rivlin", "corotated", "fixed_corotated", "arap", "stable_neo_hookean",
+            "yeoh", "shape_target", "volume", "muscle", "tendon", "ogden"]
 UNITS = {"Pa (stress)", "dimensionless", "choice"}
 
 
@@ -41,7 +41,7 @@ def test_laws_and_fields_are_views_of_the_registry() -> None:
     assert all(forms.resolve_law(name) is forms.REGISTRY[name] for name in BUILT_IN)
     law = forms.REGISTRY["neo_hookean"].make(E=1e4, nu=0.3)
     assert law == forms.make_law("neo_hookean", E=1e4, nu=0.3)
-    with pytest.raises(forms.ParameterError, match="unknown law 'neo_hooke' \\(choose from corotated, "):
+    with pytest.raises(forms.ParameterError, match="unknown law 'neo_hooke' \\(choose from arap, corotated, "):
         forms.make_law("neo_hooke")
     with pytest.raises(forms.ParameterError, match="unknown law 'neo_hooke' .*FILE.py:FUNCTION"):
         forms.resolve_law("neo_hooke")
@@ -52,7 +52,10 @@ def test_every_parameter_is_described(name: str) -> None:
     entry = forms.REGISTRY[name]
     assert entry.formula and entry.summary and entry.law.name == name
     assert all(f in FIELD_MEANINGS for f in entry.fields)
-    assert entry.bulk_parameter == entry.law.bulk_parameter and entry.parameter(entry.bulk_parameter).infinite
+    if entry.bulk_parameter is None:  # arap: no volumetric term
+        assert entry.make(**valid(name, "mu")).bulk_penalty == 0
+    else:
+        assert entry.bulk_parameter == entry.law.bulk_parameter and entry.parameter(entry.bulk_parameter).infinite
     assert len(set(entry.names)) == len(entry.names)
     for group in entry.parameter_sets:
         assert set(group) <= set(entry.names)
@@ -70,12 +73,13 @@ def test_every_parameter_is_described(name: str) -> None:
 def valid(name: str, key: str) -> dict:
     """Parameters of law ``name`` that build, and that contain ``key`` (in the set it belongs to)."""
     lame = {"E": 1.0e3, "nu": 0.3} if key in ("E", "nu") else {"mu": 1.0e3, "lmbda": 1.0e3}
-    if name in ("stvk", "neo_hookean", "corotated"):
+    if name in ("stvk", "neo_hookean", "corotated", "fixed_corotated", "stable_neo_hookean"):
         return lame
     if name in ("muscle", "tendon"):
         return {"isotropic": "stvk", **lame} if key in ("E", "nu", "mu", "lmbda") else {}
     return {"mooney_rivlin": {"c1": 1.0, "c2": 1.0, "K": 1.0}, "shape_target": {"mu": 1.0},
-            "volume": {"kappa": 1.0}, "ogden": {"c1": 1.0, "m1": 2.0, "kappa": 1.0}}[name]
+            "volume": {"kappa": 1.0}, "arap": {"mu": 1.0}, "yeoh": {"c1": 1.0, "kappa": 1.0},
+            "ogden": {"c1": 1.0, "m1": 2.0, "kappa": 1.0}}[name]
 
 
 #: values that break a bound given in words (relative to another parameter)

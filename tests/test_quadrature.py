@@ -34,6 +34,9 @@ PARAMETERS: dict[str, dict[str, Any]] = {
     "shape_target": {"mu": MU, "kappa": BULK}, "volume": {"kappa": BULK},
     "muscle": {"c1": MU / 4, "c2": MU / 8, "K": BULK / 2, "sigma_max": 2e3},
     "tendon": {"c1": MU / 4, "K": BULK / 2, "L1": 1e3, "L2": 20.0},
+    "fixed_corotated": {"E": E, "nu": NU}, "arap": {"mu": MU},
+    "stable_neo_hookean": {"E": E, "nu": NU, "variant": "paper"},
+    "yeoh": {"c1": MU / 2, "c2": -MU / 20, "c3": MU / 50, "kappa": BULK},
 }
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -72,8 +73,12 @@ def test_check_exit_codes(tmp_path) -> None:
     np.savez(bad, **data)
     fail = subprocess.run([*cmd, str(bad)], capture_output=True, text=True, env=environment(), cwd=ROOT)
     assert fail.returncode == 1, fail.stdout + fail.stderr
-    rows = {line.split()[0]: line for line in fail.stdout.splitlines()[1:]}
+    table = fail.stdout.splitlines()[1:]
+    rows = {line.split()[0]: line for line in table[1:table.index(next(t for t in table[1:] if t.split()[0]
+                                                                       not in ("psi", "P", "A")))]}
     assert set(rows) == {"P", "A"} and "FAIL" in rows["A"] and rows["A"].split()[3] == "4"
+    labels = [str(x) for x in data["labels"]]
+    assert f"#4 {labels[4]}: singular values" in fail.stdout
     missing = subprocess.run([*cmd, str(tmp_path / "nope.npz")], capture_output=True, text=True,
                              env=environment(), cwd=ROOT)
     assert missing.returncode == 2 and missing.stderr.startswith("error: ")
@@ -130,3 +135,97 @@ def test_a_law_of_your_own_is_checked_like_a_built_in_one(tmp_path) -> None:
         assert row.ok, f"{row.quantity}: max rel error {row.max_rel_error:.2e}"
     data = emit(f"{law}:psi", {"mu": 3.0, "kappa": 7.0}, samples=20, seed=1, out=tmp_path / "mine.npz")
     assert str(data["material"]).endswith("my_neo_hookean.py:psi") and np.all(np.isfinite(data["A"]))
+
+
+def _verify(*args: str, cwd=ROOT) -> subprocess.CompletedProcess:  # noqa: ANN001
+    return subprocess.run([sys.executable, "-m", "model", "verify", *args], capture_output=True, text=True,
+                          env=environment(), cwd=cwd)
+
+
+@serial_only
+def test_emit_writes_the_path_given_with_string_params_and_fields(tmp_path) -> None:
+    """--out xx wrote xx.npz and printed xx (now it prints the path written: the format comes from the
+    suffix, .npz when there is none); --param took numbers only; --field is new."""
+    out = tmp_path / "xx"
+    run = _verify("emit", "--material", "muscle", "--param", "isotropic=stvk", "--param", "mu=2e3",
+                  "--param", "lmbda=5e3", "--field", "a0=0,0,2", "--field", "alpha=0.5", "--samples", "14",
+                  "--seed", "1", "--out", str(out))
+    assert run.returncode == 0, run.stderr
+    written = tmp_path / "xx.npz"
+    assert written.is_file() and not out.exists()
+    assert run.stdout.splitlines()[0].startswith(f"wrote {written}: 14 of 14 samples of muscle")
+    data = np.load(written)
+    assert np.all(data["a0"] == [0.0, 0.0, 1.0]) and np.all(data["alpha"] == 0.5)
+    params = json.loads(str(data["params_json"]))
+    assert params["isotropic"] == "stvk" and params["mu"] == 2e3 and params["K"] == 1e7
+    kinds = {}
+    for label in data["labels"]:
+        kinds[str(label)] = kinds.get(str(label), 0) + 1
+    assert "samples per kind: " + ", ".join(f"{k} {v}" for k, v in kinds.items()) in run.stdout
+    moved = sum(v for k, v in kinds.items() if k.startswith("perturbed_"))
+    assert f"moved {moved} sample(s) off a fibre breakpoint" in run.stdout
+    inverted = _verify("emit", "--material", "neo_hookean", "--param", "mu=1", "--param", "lmbda=2", "--samples",
+                       "8", "--seed", "0", "--inverted", "--out", str(tmp_path / "nh.npz"))
+    assert inverted.returncode == 0 and "wrote" in inverted.stdout and "6 of 8" in inverted.stdout
+    assert "dropped 2 sample(s): reference not finite" in inverted.stdout
+    energy = tmp_path / "my_neo_hookean.py"
+    energy.write_text(NEO_HOOKEAN_FILE)
+    mine = _verify("emit", "--energy", f"{energy}:psi", "--param", "mu=3", "--samples", "7", "--seed", "0",
+                   "--out", str(tmp_path / "mine.npz"))
+    assert mine.returncode == 0, mine.stderr
+    both = _verify("emit", "--energy", f"{energy}:psi", "--material", "stvk", "--samples", "7", "--seed", "0",
+                   "--out", str(tmp_path / "x.npz"))
+    assert both.returncode == 2
+
+
+@serial_only
+def test_check_takes_the_law_from_the_command_line_and_names_bad_input(tmp_path) -> None:
+    """The file may lack material/params_json; bad JSON and a wrong sample count are one-line errors."""
+    data = emit("neo_hookean", {"mu": 3.0, "lmbda": 7.0}, samples=14, seed=4, out=tmp_path / "ref.npz")
+    bare = {k: data[k] for k in ("F", "P", "labels")}
+    np.savez(tmp_path / "bare.npz", **bare)
+    no_law = _verify("check", str(tmp_path / "bare.npz"))
+    assert no_law.returncode == 2 and "--material" in no_law.stderr and len(no_law.stderr.splitlines()) == 1
+    given = _verify("check", str(tmp_path / "bare.npz"), "--material", "neo_hookean", "--param", "mu=3",
+                    "--param", "lmbda=7")
+    assert given.returncode == 0, given.stdout + given.stderr
+    np.savez(tmp_path / "half.npz", **dict(bare, P=0.5 * bare["P"]))
+    wrong = _verify("check", str(tmp_path / "half.npz"), "--material", "neo_hookean", "--param", "mu=3",
+                    "--param", "lmbda=7")
+    assert wrong.returncode == 1 and "hint: P: yours = c x reference with c = 0.5 " in wrong.stdout
+    conflict = _verify("check", str(tmp_path / "ref.npz"), "--param", "mu=4")
+    assert conflict.returncode == 2 and "mu" in conflict.stderr and "conflicts" in conflict.stderr
+    other = _verify("check", str(tmp_path / "ref.npz"), "--material", "stvk")
+    assert other.returncode == 2 and "conflicts with the file's material neo_hookean" in other.stderr
+    bad_json = dict(data, params_json=np.array('{"mu": 3.0, "lmbda": }'))
+    bad_json.pop("path")
+    np.savez(tmp_path / "json.npz", **bad_json)
+    run = _verify("check", str(tmp_path / "json.npz"))
+    assert run.returncode == 2 and len(run.stderr.splitlines()) == 1
+    assert "json.npz" in run.stderr and "params_json" in run.stderr
+    short = dict(data, P=data["P"][:-1])
+    short.pop("path")
+    np.savez(tmp_path / "short.npz", **short)
+    run = _verify("check", str(tmp_path / "short.npz"))
+    assert run.returncode == 2 and len(run.stderr.splitlines()) == 1, run.stderr
+    assert "P: 13 samples, F has 14" in run.stderr
+    layout = _verify("check", str(tmp_path / "ref.npz"), "--layout", "hessian9-col")  # the file says ijkl
+    assert layout.returncode == 2 and "hessian9-col" in layout.stderr and "ijkl" in layout.stderr
+
+
+@serial_only
+def test_help_lists_laws_parameters_layouts_and_formats() -> None:
+    import forms
+
+    for args in (("--help",), ("emit", "--help"), ("check", "--help")):
+        run = _verify(*args)
+        assert run.returncode == 0, run.stderr
+        text = " ".join(run.stdout.split())
+        for name, entry in forms.REGISTRY.items():
+            assert f"{name}: " in text
+            for p in entry.parameters:
+                assert p.name in text
+        assert "sigma_max=3e5" in text and "l_star_t=1.03" in text
+        for layout in ("ijkl", "hessian9-col", "hessian9-row", "voigt-spatial", "abaqus-ddsdde", "voigt-material"):
+            assert layout in text
+        assert ".npz" in text and "CSV" in text

@@ -121,6 +121,9 @@ class RunConfig(Section):
             if formulation == "displacement" and m.law.incompressible:
                 fail(f"{bulk} = inf (incompressible) needs discretization.formulation = \"mixed\" (Taylor-Hood): "
                      "the displacement formulation has no pressure to enforce the constraint", "material", i, bulk)
+            if formulation == "mixed" and m.law.bulk_penalty == 0 and bulk not in m.law.parameters():  # arap
+                fail(f"{m.law.name!r} has no volumetric term: the mixed formulation needs one (use formulation = "
+                     "\"displacement\")", "material", i, "law")
             if formulation == "mixed" and m.law.bulk_penalty == 0:
                 fail(f"{bulk} = 0: the mixed formulation needs a volumetric term, {bulk} > 0 (or inf for "
                      "incompressible)", "material", i, bulk)

@@ -116,10 +116,12 @@ def _make_law(value: Any, info: ValidationInfo) -> forms.Law:
         if params["isotropic"] not in ISOTROPIC:
             fail(f"{params['isotropic']!r} is not one of {', '.join(ISOTROPIC)}", "isotropic", up=1)
 
+    words = {p.name for p in entry.parameters if p.choices}  # a choice: isotropic, variant
+
     def check_numbers() -> None:
-        """Parameters are numbers (finite or not: the law says which values it accepts)."""
+        """Parameters are numbers (finite or not: the law says which values it accepts), choices words."""
         for k, v in params.items():
-            if k != "isotropic" and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            if k not in words and (isinstance(v, bool) or not isinstance(v, (int, float))):
                 fail(f"must be a number, got {v!r}", k, up=1)
 
     # errors in the order: unknown parameter (e.g. a misspelt "region"), wrong type, missing or out of range

@@ -246,7 +246,8 @@ class _Renderer:
             self.tables(section, body, 1, top=True)
             if name == "material":
                 self.lines += ["The table's other keys are the parameters of its law (E, nu, mu, ...: numbers, and",
-                               "`isotropic` for muscle and tendon); they are listed per law in the last section,",
+                               "the words of a choice: `isotropic` for muscle and tendon, `variant` for",
+                               "stable_neo_hookean); they are listed per law in the last section,",
                                "[Laws and their parameters](#laws-and-their-parameters).", ""]
         self.lines += [forms.laws_markdown(level=2), ""]
         return "\n".join(self.lines).rstrip() + "\n"
