@@ -144,3 +144,21 @@ def test_uniaxial_config_run_matches_closed_form(shared_tmp: Path) -> None:
         np.testing.assert_allclose(equations(np.array([la, lt])), 0.0, atol=1e-12)
         np.testing.assert_allclose(step["probes"]["corner"], [la - 1.0, lt - 1.0, lt - 1.0], rtol=1e-8)
         np.testing.assert_allclose(step["reactions"]["xmin"][0], -t, rtol=1e-9)
+
+
+def test_verify_element_tet4_at_rest_and_in_uniaxial_stretch() -> None:
+    """verify element: K = dP/dF contracted with the P1 gradients, finite at rest (no NaN from eigenvalues);
+    W = volume psi and f from numpy's P (F is constant in a tet4)."""
+    from model.verify.element import assemble_element
+
+    X = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    grads = np.array([[-1.0, -1, -1], [1, 0, 0], [0, 1, 0], [0, 0, 1]])  # shape-function gradients
+    for F in (np.eye(3), np.diag([1.3, 0.9, 0.9])):
+        u = X @ (F - np.eye(3)).T
+        ref = assemble_element("ogden", PARAMS, X, u)
+        psi, P = numpy_psi_P(PARAMS, F)
+        A = numpy_A(PARAMS, F)
+        assert abs(ref.W - psi / 6.0) <= 1e-12 * max(abs(psi), PARAMS["c1"])
+        np.testing.assert_allclose(ref.f, (P @ grads.T).T.reshape(-1) / 6.0, atol=1e-11 * PARAMS["c1"])
+        K = np.einsum("iakb,ma,nb->mink", A, grads, grads).reshape(12, 12) / 6.0
+        np.testing.assert_allclose(ref.K, K, atol=1e-7 * np.abs(K).max())
