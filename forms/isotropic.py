@@ -19,10 +19,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+import numpy as np
 import ufl
 
 from forms.kinematics import green_lagrange, isochoric_invariants, lame_parameters, right_cauchy_green
 from forms.law import Expr, Law, ParameterError, check_keys, require, require_bulk, require_finite
+from forms.polar import rotation_not_unique
 
 
 def _lame_from(law: str, params: dict[str, Any]) -> dict[str, float]:
@@ -125,6 +127,11 @@ class Corotated(_LameLaw):
 
     def volume_constraint(self, F: Expr) -> Expr:
         return ufl.det(F) - 1.0
+
+    def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """Where the polar rotation of F is not unique (forms.polar.rotation_not_unique): det F < 0 with
+        the two smallest singular values equal (relative 1e-8), or rank F <= 1."""
+        return rotation_not_unique(F)
 
 
 @dataclass(frozen=True)

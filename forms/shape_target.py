@@ -21,6 +21,7 @@ import numpy as np
 import ufl
 
 from forms.law import Expr, Law, ParameterError, check_keys, require, require_bulk, require_finite
+from forms.polar import rotation_not_unique
 
 
 def check_shape_targets(S: np.ndarray, where: str = "S", tol: float = 1e-10) -> np.ndarray:
@@ -98,6 +99,15 @@ class ShapeTarget(Law):
 
     def volume_constraint(self, F: Expr) -> Expr:
         return ufl.det(F) - ufl.det(self.target)
+
+    def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """Where the polar rotation of M = F S is not unique (forms.polar.rotation_not_unique): det M < 0
+        with the two smallest singular values of M equal (relative 1e-8), or rank M <= 1. S is the
+        field ``S`` (N,3,3), or the identity when not given."""
+        F = np.asarray(F, dtype=np.float64).reshape(-1, 3, 3)
+        S = fields.get("S")
+        M = F if S is None else F @ np.asarray(S, dtype=np.float64).reshape(-1, 3, 3)
+        return rotation_not_unique(M)
 
     def parameters(self) -> dict[str, float]:
         return {"mu": float(self.mu), "kappa": float(self.kappa)}

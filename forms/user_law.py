@@ -41,7 +41,28 @@ with the standard parameter ``kappa`` (Pa, default 0, >= 0, or inf), so that the
 both formulations as the built-in ones do (forms.law): the displacement formulation uses psi
 (kappa = 0: W alone); the mixed one uses W + p g - p^2 / (2 kappa), and kappa = inf is exact
 incompressibility (g(F) = 0 enforced by the pressure p; mixed formulation only). ``kappa`` is
-therefore a reserved name. User laws have no polar rotation.
+therefore a reserved name.
+
+A rotation-based energy. A function with a keyword-only argument ``R`` receives the polar rotation
+R = polar(M) (as ``corotated`` does): M = F by default, or M = F S with ``ROTATION = "F S"`` (S in
+FIELDS); ``ROTATION = "F"`` may be written too, and ROTATION without an ``R`` argument is an error::
+
+    ROTATION = "F"
+    def psi(F, *, R, mu=1.0):
+        return mu * ufl.inner(F - R, F - R)
+
+R is the rotation of forms.polar (R0 per quadrature point from a batched SVD before each assembly,
+R0 (I + [w]x) with the exact first derivative of R*(M); det M < 0 gives a rotation, never a reflection).
+The rule for the stress: P is exactly the derivative of the user's W(F, R(F)) with R = polar(M),
+
+    P = dW/dF|_R + (dM/dF)^T [ R [K^-1 g]x ],   g = 2 axial(skew(R^T dW/dR)),
+    K = tr(H) I - H, H = sym(R^T M)            (forms.polar.rotation_stress)
+
+and the tangent is UFL's derivative of that P (an explicit function of F and R, R with its exact first
+derivative, so A is exact too). No envelope theorem is assumed: for W = mu ||F - R||^2 (R minimises it)
+g = 0 and P = 2 mu (F - R), corotated's stress; for any other W the rotation term is kept. Where the
+rotation is not unique (det M < 0 with the two smallest singular values of M equal) the term is
+dropped: W's value is right there, P and A do not exist.
 
 The law's name is the spec as written ("my_law.py:psi"); error messages start with it.
 """
@@ -59,12 +80,18 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, ClassVar
 
+import numpy as np
 import ufl
+from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
+from ufl.algorithms.apply_derivatives import apply_derivatives
 
 from forms.law import Expr, Law, ParameterError, check_keys
 from forms.metadata import FIELD_MEANINGS, LawEntry, Parameter
+from forms.polar import linearised_rotation, polar_rotation_svd, rotation_not_unique, rotation_stress
 
 VOLUMETRIC = {"J - 1": "J - 1", "ln J": "ln J"}
+#: the matrices M whose polar rotation a user law may ask for (module-level ROTATION)
+ROTATIONS = ("F", "F S")
 #: the standard bulk parameter every user law has
 KAPPA = Parameter("kappa", "bulk penalty of the volumetric term (kappa/2) g(F)^2", "Pa (stress)", default=0.0,
                   lower=0.0, lower_open=False, infinite=True)
@@ -89,6 +116,8 @@ class UserLaw(Law):
     entry: ClassVar[LawEntry]
     function: ClassVar[Callable[..., Any]]
     logarithmic: ClassVar[bool] = False
+    #: "F" or "F S" when the function takes the polar rotation R of that matrix, else None
+    rotation: ClassVar[str | None] = None
 
     def __post_init__(self) -> None:
         given = dict(self.values)
@@ -122,8 +151,43 @@ class UserLaw(Law):
         return out
 
     def reduced_energy(self, F: Expr, R: Expr | None = None) -> Expr:
-        """W(F) of the user's function."""
-        return ufl.as_ufl(self.function(F, **dict(self.values), **self.field_values()))
+        """W(F) (or W(F, R)) of the user's function."""
+        extra: dict[str, Expr] = {}
+        if self.rotation is not None:
+            if R is None:
+                raise ValueError(f"{self.name}: the polar rotation R is required")
+            extra["R"] = R
+        return _as_scalar(self.name, self.function(F, **dict(self.values), **self.field_values(), **extra))
+
+    def rotation_argument(self, F: Expr) -> Expr:
+        """M = F, or F S with ROTATION = "F S"."""
+        return F * self.field_values()["S"] if self.rotation == "F S" else F
+
+    def reduced_stress(self, F: Expr, R: Expr | None = None) -> Expr:
+        """dW/dF of W(F, R(F)) with R = polar(M): dW/dF|_R + (dM/dF)^T rotation_stress(M, R, dW/dR).
+
+        Without a rotation, UFL's dW/dF (forms.law).
+        """
+        if self.rotation is None:
+            return super().reduced_stress(F, R)
+        if R is None:
+            raise ValueError(f"{self.name}: the polar rotation R is required")
+        Fv, Rv = ufl.variable(F), ufl.variable(R)
+        W = self.reduced_energy(Fv, Rv)
+        through_rotation = rotation_stress(self.rotation_argument(F), R, ufl.diff(W, Rv))
+        if self.rotation == "F S":
+            through_rotation = through_rotation * self.field_values()["S"].T
+        return ufl.diff(W, Fv) + through_rotation
+
+    def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """With a rotation: where it is not unique (forms.polar.rotation_not_unique of M = F, or F S with the
+        field ``S`` (N,3,3))."""
+        F = np.asarray(F, dtype=np.float64).reshape(-1, 3, 3)
+        if self.rotation is None:
+            return super().tangent_undefined(F, **fields)
+        S = fields.get("S") if self.rotation == "F S" else None
+        M = F if S is None else F @ np.asarray(S, dtype=np.float64).reshape(-1, 3, 3)
+        return rotation_not_unique(M)
 
     def volume_constraint(self, F: Expr) -> Expr:
         """g(F) = J - 1, or ln J when the file says VOLUMETRIC = "ln J"."""
@@ -136,6 +200,31 @@ class UserLaw(Law):
 
 def _fail(spec: str, message: str) -> None:
     raise ParameterError(f"{spec}: {message}")
+
+
+def _as_scalar(spec: str, value: Any) -> Expr:
+    """The function's return value as a scalar UFL expression, or ValueError naming what it was."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return ufl.as_ufl(float(value))
+    if not isinstance(value, ufl.core.expr.Expr):
+        raise ValueError(f"{spec}: the function must return a scalar UFL expression of F, got "
+                         f"{type(value).__module__}.{type(value).__qualname__}")
+    if value.ufl_shape != ():
+        raise ValueError(f"{spec}: the function must return a scalar UFL expression of F, got shape "
+                         f"{value.ufl_shape}")
+    return value
+
+
+def _where(err: BaseException, path: Path | None) -> str:
+    """" (FILE line N)" of the innermost traceback frame in the user's file, or ""."""
+    if path is None:
+        return ""
+    tb, line = err.__traceback__, None
+    while tb is not None:
+        if Path(tb.tb_frame.f_code.co_filename).resolve() == path.resolve():
+            line = tb.tb_lineno
+        tb = tb.tb_next
+    return "" if line is None else f" ({path.name} line {line})"
 
 
 def _bounds(spec: str, name: str, meta: dict[str, Any]) -> dict[str, Any]:
@@ -173,8 +262,23 @@ def _import(spec: str, path: Path) -> ModuleType:
     return module
 
 
+def _rotation(spec: str, module: ModuleType, function: Callable[..., Any], fields: tuple[str, ...]) -> str | None:
+    """"F" or "F S" when the function takes the polar rotation R (keyword ``R``), else None."""
+    takes_R = "R" in inspect.signature(function).parameters
+    rotation = getattr(module, "ROTATION", None)
+    if rotation is None:
+        return "F" if takes_R else None
+    if rotation not in ROTATIONS:
+        _fail(spec, f"ROTATION = {rotation!r}, must be one of {', '.join(repr(r) for r in ROTATIONS)}")
+    if not takes_R:
+        _fail(spec, f"ROTATION = {rotation!r}: the function must take the rotation, def psi(F, *, R, ...)")
+    if rotation == "F S" and "S" not in fields:
+        _fail(spec, "ROTATION = 'F S' needs the shape target: FIELDS = ('S',)")
+    return rotation
+
+
 def _parameters(spec: str, function: Callable[..., Any], fields: tuple[str, ...],
-                metadata: dict[str, Any]) -> tuple[Parameter, ...]:
+                metadata: dict[str, Any], rotation: bool = False) -> tuple[Parameter, ...]:
     """The parameters of the function's signature, with PARAMETERS' metadata, then kappa."""
     signature = inspect.signature(function)
     arguments = list(signature.parameters.values())
@@ -187,6 +291,10 @@ def _parameters(spec: str, function: Callable[..., Any], fields: tuple[str, ...]
             _fail(spec, f"argument {arg.name!r} must be keyword-only: def psi(F, *, {arg.name}=...) "
                         "(parameters and fields follow the *)")
         if arg.name in fields:
+            continue
+        if arg.name == "R" and rotation:
+            if arg.default is not inspect.Parameter.empty and arg.default is not None:
+                _fail(spec, "the rotation R takes no default: def psi(F, *, R, ...)")
             continue
         if arg.name == "kappa":
             _fail(spec, "'kappa' is reserved: the law adds the volumetric term (kappa/2) g(F)^2 itself")
@@ -218,16 +326,35 @@ def _parameters(spec: str, function: Callable[..., Any], fields: tuple[str, ...]
     return (*out, KAPPA)
 
 
-def _probe(spec: str, law: UserLaw) -> None:
-    """Call the function once with a symbolic F, to report a broken law at load time."""
-    F = ufl.variable(ufl.as_matrix([[1.1, 0.1, 0.0], [0.0, 0.9, 0.05], [0.02, 0.0, 1.0]]))
+def _probe(spec: str, law: UserLaw, path: Path | None = None) -> None:
+    """Call the function once with a symbolic F (and R), and derive its stress and tangent, to report a
+    broken law at load time: an exception inside the function (named with its line in the file), a
+    value that is not a scalar UFL expression, or an expression UFL cannot differentiate."""
+    values = np.array([[1.1, 0.1, 0.0], [0.0, 0.9, 0.05], [0.02, 0.0, 1.0]])
+    F = ufl.variable(ufl.as_matrix(values.tolist()))
+    R = None
+    if law.rotation is not None:
+        M = values @ np.diag([1.2, 1.0, 0.9]) if law.rotation == "F S" else values
+        R = linearised_rotation(law.rotation_argument(F), ufl.as_matrix(polar_rotation_svd(M[None])[0].tolist()))
+    function = getattr(law.function, "__name__", "psi")
     try:
-        W = law.reduced_energy(F)
+        law.reduced_energy(F, R)
+    except ValueError as err:
+        if str(err).startswith(f"{law.name}: the function must return"):
+            raise ParameterError(str(err)) from None
+        raise _failure(spec, function, "calling", err, path) from None
     except Exception as err:  # noqa: BLE001 - reported against the spec
-        first = str(err).splitlines()[0] if str(err) else ""
-        _fail(spec, f"calling the function with a UFL F failed: {type(err).__name__}: {first}")
-    if W.ufl_shape != ():
-        _fail(spec, f"the function must return a scalar UFL expression of F, got shape {W.ufl_shape}")
+        raise _failure(spec, function, "calling", err, path) from None
+    try:
+        apply_derivatives(apply_algebra_lowering(ufl.diff(law.reduced_stress(F, R), F)))
+    except Exception as err:  # noqa: BLE001 - reported against the spec
+        raise _failure(spec, function, "differentiating", err, path) from None
+
+
+def _failure(spec: str, function: str, doing: str, err: BaseException, path: Path | None) -> ParameterError:
+    first = str(err).splitlines()[0] if str(err) else ""
+    what = "calling the function with a UFL F" if doing == "calling" else "deriving its stress and tangent"
+    return ParameterError(f"{spec}: {what} failed in {function}(){_where(err, path)}: {type(err).__name__}: {first}")
 
 
 _CACHE: dict[tuple[str, str, int], LawEntry] = {}
@@ -259,12 +386,14 @@ def load_user_law(spec: str, path: Path, function_name: str, base: Path) -> LawE
     metadata = getattr(module, "PARAMETERS", {})
     if not isinstance(metadata, dict):
         _fail(spec, "PARAMETERS must be a dict {name: {meaning, unit, bounds, exclusive}}")
-    parameters = _parameters(spec, function, fields, metadata)
+    rotation = _rotation(spec, module, function, fields)
+    parameters = _parameters(spec, function, fields, metadata, rotation is not None)
     doc = inspect.getdoc(function) or ""
     formula = str(getattr(module, "FORMULA", "")) or (doc.splitlines()[0] if doc else function_name)
     summary = (inspect.getdoc(module) or "").split("\n\n")[0].replace("\n", " ")
     cls = type(f"UserLaw_{full.stem}_{function_name}", (UserLaw,),
                {"name": spec, "function": staticmethod(function), "logarithmic": volumetric == "ln J",
+                "rotation": rotation, "needs_rotation": rotation is not None,
                 "__module__": __name__, "__doc__": doc or UserLaw.__doc__})
     entry = LawEntry(spec, summary, f"W + (kappa/2) g^2, W = {formula}", parameters, cls, fields=fields,
                      bulk_parameter="kappa", volume_constraint=volumetric, source=str(path))
@@ -274,7 +403,7 @@ def load_user_law(spec: str, path: Path, function_name: str, base: Path) -> LawE
                                     **{f: _SAMPLE_FIELDS[f]() for f in fields})
     except ParameterError as err:
         _fail(spec, f"the default parameters are not valid: {err}")
-    _probe(spec, probe)
+    _probe(spec, probe, full)
     _CACHE[key] = entry
     return entry
 

@@ -30,7 +30,7 @@ from model import compat
 
 inf = math.inf
 BUILT_IN = ["stvk", "neo_hookean", "mooney_rivlin", "corotated", "fixed_corotated", "arap", "stable_neo_hookean",
-            "yeoh", "shape_target", "volume", "muscle", "tendon"]
+            "yeoh", "shape_target", "volume", "muscle", "tendon", "ogden"]
 UNITS = {"Pa (stress)", "dimensionless", "choice"}
 
 
@@ -78,11 +78,12 @@ def valid(name: str, key: str) -> dict:
     if name in ("muscle", "tendon"):
         return {"isotropic": "stvk", **lame} if key in ("E", "nu", "mu", "lmbda") else {}
     return {"mooney_rivlin": {"c1": 1.0, "c2": 1.0, "K": 1.0}, "shape_target": {"mu": 1.0},
-            "volume": {"kappa": 1.0}, "arap": {"mu": 1.0}, "yeoh": {"c1": 1.0, "kappa": 1.0}}[name]
+            "volume": {"kappa": 1.0}, "arap": {"mu": 1.0}, "yeoh": {"c1": 1.0, "kappa": 1.0},
+            "ogden": {"c1": 1.0, "m1": 2.0, "kappa": 1.0}}[name]
 
 
 #: values that break a bound given in words (relative to another parameter)
-BREAK_CONSTRAINT = {"lmbda": -1.0e3, "l_star": 0.9}
+BREAK_CONSTRAINT = {"lmbda": -1.0e3, "l_star": 0.9, "m1": 0.0, "m2": 0.0, "m3": 0.0}
 
 
 def cases() -> list[tuple[str, str]]:

@@ -72,6 +72,7 @@ from forms import Law, law_fields
 from forms.kinematics import cauchy_stress, deformation_gradient, von_mises
 from model import compat
 from model.domain import Domain
+from model.fields.eigen import EigenField
 from model.fields.polar import PolarField
 
 log = logging.getLogger(__name__)
@@ -163,6 +164,8 @@ class ElasticityProblem:
                  self.energy_quadrature_degree, degree)
         self.F = deformation_gradient(self.u)
         self.polar_fields: list[PolarField] = []
+        #: per-point eigen states of the laws that need one (forms.ogden), updated with the polar fields
+        self.eigen_fields: list[EigenField] = []
         self._state_stamp: np.ndarray | None = None
         self.internal = 0
         self.external = 0
@@ -198,7 +201,7 @@ class ElasticityProblem:
                 raise ValueError(f"{law.name}: {law.bulk_parameter} = {value!r} (incompressible, materials[{i}] on "
                                  f"region {region!r}) needs formulation = 'mixed' (Taylor-Hood): the displacement "
                                  "formulation has no pressure to enforce the constraint")
-            self._add_material(region, law)
+            self.materials[i] = (region, self._add_material(region, law))
         self.dirichlet: list[DirichletBoundary] = []
         self.load_hooks: list[Callable[[float], None]] = []
         self._forms: tuple[compat.Form, compat.Form] | None = None
@@ -217,9 +220,16 @@ class ElasticityProblem:
         """ds restricted to a named boundary."""
         return self.ds(self.domain.boundaries[name])
 
-    def _add_material(self, region: str, law: Law) -> None:
+    def _add_material(self, region: str, law: Law) -> Law:
+        """Add the law's terms; returns the law as used (with its eigen state when it needs one)."""
         dx = self.energy_measure(region)
         R = None
+        if getattr(law, "needs_eigenbasis", False):
+            eigen = EigenField(self.domain.mesh, law.spectral_argument(self.F),  # type: ignore[attr-defined]
+                               self.energy_quadrature_degree, law.spectral_derivatives,  # type: ignore[attr-defined]
+                               self.domain.region_cells(region))
+            self.eigen_fields.append(eigen)
+            law = law.with_eigenbasis(eigen.Q0, eigen.D)  # type: ignore[attr-defined]
         if law.needs_rotation:
             polar = PolarField(self.domain.mesh, law.rotation_argument(self.F), self.energy_quadrature_degree,
                                self.domain.region_cells(region))
@@ -242,6 +252,7 @@ class ElasticityProblem:
         self._energy_form = None
         self._energy_forms = None
         self._potential_form = None
+        return law
 
     def _without_activation(self, law: Law, R: ufl.core.expr.Expr | None) -> ufl.core.expr.Expr | None:
         """psi(F; alpha = 0) of a law whose activation field alpha is set, else None (nothing to remove)."""
@@ -426,18 +437,20 @@ class ElasticityProblem:
                     g.interpolate(lambda x, f=f: f(x, value))
 
     def update_state(self) -> None:
-        """Refresh state stored at quadrature points (polar rotations) from the current solution.
+        """Refresh state stored at quadrature points (polar rotations, eigen states) from the current solution.
 
         Skipped when the solution is unchanged since the last refresh (SNES evaluates the
         residual and the Jacobian at the same iterate; outputs evaluate it once more).
         """
-        if not self.polar_fields:
+        if not self.polar_fields and not self.eigen_fields:
             return
         current = self.solution.x.array
         if self._state_stamp is not None and np.array_equal(self._state_stamp, current):
             return
         for polar in self.polar_fields:
             polar.update()
+        for eigen in self.eigen_fields:
+            eigen.update()
         self._state_stamp = current.copy()
 
     def invalidate_state(self) -> None:

@@ -290,6 +290,16 @@ class ElementAssembler:
         F = ufl.Identity(3) + ufl.grad(self.u)
         R = None
         self.polar = None
+        self.eigen = None
+        if getattr(self.material, "needs_eigenbasis", False):  # per-point eigen state (forms.ogden)
+            from model.fields.eigen import EigenField
+
+            if self.rule is not None:
+                raise ValueError(f"quadrature_points: {law} uses a per-point eigenbasis, stored at basix's default "
+                                 "points; give quadrature_degree instead of a rule of your own")
+            self.eigen = EigenField(msh, self.material.spectral_argument(F), degree,  # type: ignore[attr-defined]
+                                    self.material.spectral_derivatives)  # type: ignore[attr-defined]
+            self.material = self.material.with_eigenbasis(self.eigen.Q0, self.eigen.D)  # type: ignore[attr-defined]
         if self.material.needs_rotation:
             if self.rule is not None:
                 raise ValueError(f"quadrature_points: {law} uses the polar rotation, stored at basix's default "
@@ -326,6 +336,8 @@ class ElementAssembler:
         self.u.x.array[:] = u.reshape(-1)[self.dof]
         if self.polar is not None:
             self.polar.update()
+        if self.eigen is not None:
+            self.eigen.update()
         n = 3 * self.spec.nodes
         vector = fem_petsc.assemble_vector(self.forms[0])
         matrix = fem_petsc.assemble_matrix(self.forms[1])

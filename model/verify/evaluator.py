@@ -4,7 +4,7 @@ Each sample is one cell of a mesh of N disjoint tetrahedra on MPI.COMM_SELF; F a
 (forms.metadata.FIELD_SHAPES: S (3,3), a0 (3,), s0 (3,), alpha ()) are DG0 functions, and psi,
 P = law.stress(F) and A = ufl.diff(P, F) are dolfinx Expressions evaluated at the cell's one
 quadrature point. Laws with a polar rotation use the simulations' quadrature-point machinery
-(model.fields.polar.PolarField).
+(model.fields.polar.PolarField; model.fields.eigen.EigenField for ogden).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import forms
 from forms.law import Law
 from forms.metadata import FIELD_SHAPES
 from model import compat
+from model.fields.eigen import EigenField
 from model.fields.polar import PolarField
 
 #: The quantities of a check, and their value shape per sample.
@@ -52,6 +53,11 @@ class ReferenceEvaluator:
             self.fields[name] = fem.Function(space, name=name)
         self.law: Law = entry.make(**self.fields, **params)
         Fv = ufl.variable(self.F)
+        self.eigen = None
+        if getattr(self.law, "needs_eigenbasis", False):  # per-point eigen state (forms.ogden)
+            self.eigen = EigenField(self.mesh, self.law.spectral_argument(Fv), 1,  # type: ignore[attr-defined]
+                                    self.law.spectral_derivatives)  # type: ignore[attr-defined]
+            self.law = self.law.with_eigenbasis(self.eigen.Q0, self.eigen.D)  # type: ignore[attr-defined]
         R = None
         self.polar = None
         if self.law.needs_rotation:
@@ -79,6 +85,8 @@ class ReferenceEvaluator:
             self._set(function, fields[name])
         if self.polar is not None:
             self.polar.update()
+        if self.eigen is not None:
+            self.eigen.update()
         inverse = np.empty_like(self.order)
         inverse[self.order] = np.arange(self.num_samples)
         out = {}
