@@ -237,6 +237,20 @@ def _check_arrays(F: np.ndarray, P: np.ndarray | None, A: np.ndarray | None) -> 
         raise ValueError(f"A: shape {np.shape(A)}, needs ({n}, 3, 3, 3, 3)")
 
 
+def _reference_inputs(layout: str, measure: str | None, F: np.ndarray, P: np.ndarray,
+                      A: np.ndarray) -> tuple[str, np.ndarray, np.ndarray, np.ndarray]:
+    """(measure, F, P, A) checked and as float64: the layout and measure known (measure defaults to the
+    layout's), F (N,3,3), P (N,3,3), A (N,3,3,3,3)."""
+    _check_layout(layout)
+    measure = measure or NATURAL_STRESS[layout]
+    _check_measure(measure)
+    F = _as_F(F)
+    P = np.asarray(P, dtype=np.float64)
+    A = np.asarray(A, dtype=np.float64)
+    _check_arrays(F, P, A)
+    return measure, F, P, A
+
+
 def from_reference(layout: str, F: np.ndarray, P: np.ndarray, A: np.ndarray,
                    measure: str | None = None) -> dict[str, np.ndarray]:
     """The reference (P (N,3,3), A (N,3,3,3,3)) in ``layout``: {"stress": ..., "tangent": ...}.
@@ -245,13 +259,7 @@ def from_reference(layout: str, F: np.ndarray, P: np.ndarray, A: np.ndarray,
     symmetric measure (S, sigma) with a Voigt layout. The tangent has the shape ``(N, *TANGENT_SHAPES[layout])``;
     formulas in the module docstring.
     """
-    _check_layout(layout)
-    measure = measure or NATURAL_STRESS[layout]
-    _check_measure(measure)
-    F = _as_F(F)
-    P = np.asarray(P, dtype=np.float64)
-    A = np.asarray(A, dtype=np.float64)
-    _check_arrays(F, P, A)
+    measure, F, P, A = _reference_inputs(layout, measure, F, P, A)
     stress = stress_from_P(measure, F, P)
     if layout in VOIGT_LAYOUTS and measure != "P":
         stress = to_voigt(stress)
@@ -496,13 +504,7 @@ def hints(layout: str, F: np.ndarray, P_ref: np.ndarray, A_ref: np.ndarray, user
     Returns [] when the arrays match the reference as given, or when none of these explains the difference.
     Samples where the reference or the user's array is not finite are left out.
     """
-    _check_layout(layout)
-    measure = measure or NATURAL_STRESS[layout]
-    _check_measure(measure)
-    F = _as_F(F)
-    P_ref = np.asarray(P_ref, dtype=np.float64)
-    A_ref = np.asarray(A_ref, dtype=np.float64)
-    _check_arrays(F, P_ref, A_ref)
+    measure, F, P_ref, A_ref = _reference_inputs(layout, measure, F, P_ref, A_ref)
     out: list[str] = []
     if user_stress is not None:
         user = np.asarray(user_stress, dtype=np.float64)
