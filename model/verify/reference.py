@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 import forms
 from forms.law import Law
+from forms.metadata import FIELD_SHAPES
 from model import compat
 from model.fields.polar import PolarField
 
@@ -60,16 +61,12 @@ class ReferenceEvaluator:
         space = compat.function_space(self.mesh, "DG", 0, (3, 3))
         self.F = fem.Function(space, name="F")
         self.fields: dict[str, fem.Function] = {}
-        extra: dict[str, Any] = {}
-        if "S" in _law_fields(material):
-            self.fields["S"] = fem.Function(space, name="S")
-            extra["S"] = self.fields["S"]
-        if "a0" in _law_fields(material):
-            self.fields["a0"] = fem.Function(compat.function_space(self.mesh, "DG", 0, (3,)), name="a0")
-            extra["a0"] = self.fields["a0"]
-        if "alpha" in _law_fields(material):
-            self.fields["alpha"] = fem.Function(compat.function_space(self.mesh, "DG", 0), name="alpha")
-            extra["alpha"] = self.fields["alpha"]
+        for name in _law_fields(material):  # a DG0 Function per field, of its shape in FIELD_SHAPES
+            shape = FIELD_SHAPES[name]
+            field_space = compat.function_space(self.mesh, "DG", 0, shape) if shape else \
+                compat.function_space(self.mesh, "DG", 0)
+            self.fields[name] = fem.Function(field_space, name=name)
+        extra: dict[str, Any] = dict(self.fields)
         self.law: Law = entry.make(**extra, **params)
         Fv = ufl.variable(self.F)
         R = None
@@ -186,6 +183,12 @@ def field_samples(material: str, n: int, seed: int) -> dict[str, np.ndarray]:
         a0 = rng.standard_normal((n, 3))
         a0[0::4] = [1.0, 0.0, 0.0]
         out["a0"] = a0 / np.linalg.norm(a0, axis=1)[:, None]
+    if "s0" in _law_fields(material):  # unit sheet directions orthogonal to a0 (axis-aligned where a0 is)
+        s0 = rng.standard_normal((n, 3))
+        s0[0::4] = [0.0, 1.0, 0.0]
+        a0 = out.get("a0", np.tile([1.0, 0.0, 0.0], (n, 1)))
+        s0 -= np.einsum("ni,ni->n", s0, a0)[:, None] * a0
+        out["s0"] = s0 / np.linalg.norm(s0, axis=1)[:, None]
     if "alpha" in _law_fields(material):
         alpha = rng.uniform(0.0, 1.0, n)
         alpha[0::3], alpha[1::3] = 0.0, 1.0
