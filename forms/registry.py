@@ -122,8 +122,7 @@ BUILT_IN: tuple[LawEntry, ...] = (
              HOLZAPFEL_OGDEN_PARAMETERS, HolzapfelOgden, fields=("a0", "s0"), bulk_parameter="kappa",
              volume_constraint="ln J",
              notes=("Defaults: Holzapfel & Ogden 2009, Table 1 (kappa: a choice of this project).",
-                    "In a configuration file the sheet field s0 is not available yet (a ConfigError says so): "
-                    "use it through verify and the Python API.")),
+                    "In a configuration file s0 comes from `sheets = { type = ... }`, given as `fibres` is.")),
     LawEntry("trans_iso_mooney_rivlin", "Transversely isotropic Mooney-Rivlin (Weiss, Maker & Govindjee 1996; "
              "FEBio's \"trans iso Mooney-Rivlin\") with FEBio's uncoupled active contraction as an energy: "
              "lbar dF2/dlbar = 0 (lbar < 1), c3 (exp(c4 (lbar - 1)) - 1) (1 <= lbar < lam_max), c5 lbar + c6 "

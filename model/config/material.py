@@ -293,11 +293,13 @@ class MaterialConfig(Section):
     law: Annotated[forms.Law, PlainValidator(_make_law, json_schema_input_type=Literal[LAW_NAMES] | UserLawSpec)] = key(
         "name of the hyperelastic law, or \"FILE.py:FUNCTION\" for a law of your own (forms/user_law.py; FILE "
         "relative to the configuration file); its parameters are the table's other keys")
-    fibres: Fibres | None = key("the fibre directions a0 (laws with fibres: muscle, tendon)", default=None)
+    fibres: Fibres | None = key("the fibre directions a0 (laws with fibres: muscle, tendon, holzapfel_ogden, "
+                                "trans_iso_mooney_rivlin, blemker)", default=None)
     sheets: Fibres | None = key("the sheet directions s0, orthogonal to the fibres (holzapfel_ogden), given as "
                                 "fibres are", default=None)
     activation: Activation = key(
-        "the activation alpha in [0, 1] (law = \"muscle\"): a constant, or a table [[t, alpha], ...] piecewise "
+        "the activation alpha in [0, 1] (law = \"muscle\", \"trans_iso_mooney_rivlin\" or \"blemker\"): a constant, "
+        "or a table [[t, alpha], ...] piecewise "
         "linear in t, constant beyond its ends (t: the load factor, or the time of a dynamic run in s)",
         "dimensionless", default_factory=lambda data: ((0.0, 0.0),) if _takes(data.get("law"), "alpha") else ())
     density: Positive | None = key("mass density, for [dynamics]", "kg/m^3 (mass density)", default=None)
