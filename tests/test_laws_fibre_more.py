@@ -493,3 +493,38 @@ def test_sheets_only_where_they_apply() -> None:
     raw["material"][0]["sheets"] = {"type": "constant", "origin": [0.0, 0.0, 0.0], "insertion": Y}
     setup = build(parse(raw))
     assert "sheet_direction" in setup.problem.cell_fields
+
+
+def test_verify_emits_and_checks_the_sheet_field(shared_tmp) -> None:
+    """verify's reference creates the fields from FIELD_SHAPES: s0 is emitted (unit, orthogonal to a0) and checked."""
+    from mpi4py import MPI
+
+    from model.verify.reference import check, emit
+
+    out = shared_tmp / f"ho_{MPI.COMM_WORLD.rank}.npz"
+    # 5 samples: identity, rotation, uniaxial, isotropic, large stretch (the 6th kind, nearly flat, overflows the
+    # exponentials: psi = inf there, which verify's sampling is to leave out)
+    data = emit("holzapfel_ogden", {}, 5, 1, out)
+    a0, s0 = data["a0"], data["s0"]
+    assert np.allclose(np.linalg.norm(s0, axis=1), 1.0) and np.abs(np.einsum("ni,ni->n", a0, s0)).max() < 1e-14
+    P = np.array([complex_step_P("holzapfel_ogden", F, {"a0": a, "s0": s}) for F, a, s in zip(data["F"], a0, s0)])
+    assert np.abs(P - data["P"]).max() <= 1e-9 * np.abs(P).max()
+    assert all(row.ok for row in check(out))
+
+
+@pytest.mark.parametrize("law", ["holzapfel_ogden", "blemker"])
+def test_mixed_formulation_incompressible(shared_tmp, law: str) -> None:
+    """Taylor-Hood with the bulk parameter = inf (g = ln J = 0 exactly): the uniaxial example converges and
+    keeps the volume."""
+    raw = example("uniaxial")
+    params = {**PARAMS[law], forms.REGISTRY[law].bulk_parameter: math.inf}
+    raw["material"] = [_material(law, params, 0.0 if law == "blemker" else None, X)]
+    raw["mesh"]["cells"] = [2, 2, 2]
+    raw["discretization"] = {"degree": 2, "formulation": "mixed", "quadrature_degree": 2}
+    raw["boundary"][-1]["value"] = [200.0, 0.0, 0.0]
+    raw["output"] = {"dir": str(shared_tmp), "xdmf": False, "vtu": False, "png": False}
+    summary = run_raw(raw, shared_tmp)
+    corner = np.array(summary["steps"][-1]["probes"]["corner"]).ravel()
+    assert corner[0] > 0 and corner[1] < 0 and corner[2] < 0
+    stretches = 1.0 + corner  # the corner of the unit cube: homogeneous stretches
+    assert abs(np.prod(stretches) - 1.0) < 1e-10
