@@ -85,20 +85,20 @@ def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
                     raise ConfigError(f"material[{i}].{which}.regions[{j}]: {error}")
 
 
-def _fibre_fields(config: RunConfig, domain: Domain, which: str = "fibres",
+def _fibre_fields(config: RunConfig, domain: Domain, attribute: str = "fibres",
                   name: str = "fibre_direction") -> fem.Function | None:
-    """One DG0 vector Function for all materials with ``which`` (fibres: a0; sheets: s0), each setting its
+    """One DG0 vector Function for all materials with ``attribute`` (fibres: a0; sheets: s0), each setting its
     region's cells."""
-    if not any(getattr(m, which) is not None for m in config.materials):
+    if not any(getattr(m, attribute) is not None for m in config.materials):
         return None
     function = fem.Function(compat.function_space(domain.mesh, "DG", 0, (3,)), name=name)
     potentials: dict[tuple[str, str, tuple[str, ...]], fem.Function] = {}
     for i, m in enumerate(config.materials):
-        spec = getattr(m, which)
+        spec = getattr(m, attribute)
         if spec is None:
             continue
         field = FibreField(domain, m.region, function=function)
-        key = f"material[{i}].{which}"
+        key = f"material[{i}].{attribute}"
         try:
             if spec.type == "constant":
                 field.constant(spec.origin, spec.insertion)  # type: ignore[arg-type]
