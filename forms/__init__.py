@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from forms.fibre_laws import Blemker, HolzapfelOgden, TransIsoMooneyRivlin
 from forms.isotropic import Corotated, MooneyRivlin, NeoHookean, StVenantKirchhoff
 from forms.law import Law, ParameterError
 from forms.metadata import FIELD_MEANINGS, LawEntry, Parameter
@@ -40,4 +41,5 @@ def law_fields(law: Law) -> tuple[str, ...]:
 
 __all__ = ["FIELDS", "FIELD_MEANINGS", "LAWS", "Law", "LawEntry", "Parameter", "ParameterError", "REGISTRY",
            "UserLaw", "law_fields", "make_law", "check_shape_targets", "laws_markdown", "resolve_law", "Corotated",
+           "Blemker", "HolzapfelOgden", "TransIsoMooneyRivlin",
            "MooneyRivlin", "Muscle", "NeoHookean", "ShapeTarget", "StVenantKirchhoff", "Tendon", "Volume"]

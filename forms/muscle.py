@@ -39,6 +39,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+import numpy as np
 import ufl
 
 from forms.isotropic import _lame_from
@@ -46,6 +47,42 @@ from forms.kinematics import green_lagrange, isochoric_invariants, right_cauchy_
 from forms.law import Expr, Law, ParameterError, check_keys, require, require_bulk, require_finite
 
 ISOTROPIC = ("mooney_rivlin", "stvk")
+#: relative tolerance of tangent_undefined: |x - b| <= TOL |b| is on the breakpoint b
+TOL = 1e-8
+
+
+def isochoric_fibre_invariant(F: np.ndarray, a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
+    """numpy: J^(-2/3) (F a).(F b) per sample (F (N,3,3), a and b (N,3)); b = a gives Ibar4 = lbar^2."""
+    F = np.reshape(F, (-1, 3, 3))
+    Fa = np.einsum("nij,nj->ni", F, a)
+    Fb = Fa if b is None else np.einsum("nij,nj->ni", F, b)
+    return np.cbrt(np.linalg.det(F)) ** -2.0 * np.einsum("ni,ni->n", Fa, Fb)
+
+
+def _field(fields: dict[str, np.ndarray], name: str, law: str, n: int, shape: tuple[int, ...]) -> np.ndarray:
+    if fields.get(name) is None:
+        raise ValueError(f"{law}: the field {name} is required")
+    return np.broadcast_to(np.asarray(fields[name], dtype=np.float64), (n, *shape))
+
+
+def near(x: np.ndarray, breakpoint: float) -> np.ndarray:
+    """|x - b| <= 1e-8 |b| (elementwise): x on the breakpoint b, within tangent_undefined's tolerance."""
+    return np.abs(np.asarray(x) - breakpoint) <= TOL * abs(breakpoint)
+
+
+def _muscle_breakpoints(F: np.ndarray, fields: dict[str, np.ndarray], law: str, l_ofl: float, passive: bool,
+                        active: bool) -> np.ndarray:
+    """The muscle curves' points where A jumps, in s = lbar / l_ofl: 1 (``passive``: the passive curve starts
+    with a non-zero slope), 0.6 and 1.4 (``active``, where alpha != 0, or everywhere without an alpha field:
+    f_active's slope jumps there). s = 0.4, 1.6 and l_star / l_ofl are C1 points: A is continuous there."""
+    F = np.reshape(F, (-1, 3, 3))
+    s = np.sqrt(isochoric_fibre_invariant(F, _field(fields, "a0", law, len(F), (3,)))) / l_ofl
+    out = near(s, 1.0) if passive else np.zeros(len(F), dtype=bool)
+    if active:
+        alpha = fields.get("alpha")
+        on = np.ones(len(F), dtype=bool) if alpha is None else np.broadcast_to(alpha, len(F)) != 0
+        out |= on & (near(s, 0.6) | near(s, 1.4))
+    return out
 
 
 def _indicators(x: Expr, breaks: list[float]) -> list[Expr]:
@@ -280,6 +317,12 @@ class Muscle(_FibreLaw):
         Fa = active_antiderivative(s, ufl) - active_antiderivative(s0, math)
         return self.sigma_max * (Fp + alpha * Fa)
 
+    def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """Where A jumps (numpy; fields a0 (N,3), alpha (N,)): s = lbar/l_ofl = 1 (sigma_max P1 P2 > 0), and
+        s = 0.6, 1.4 where alpha != 0 (sigma_max > 0). l_star is a C1 point of the passive curve (no jump)."""
+        return _muscle_breakpoints(F, fields, self.name, self.l_ofl, self.sigma_max * self.P1 * self.P2 > 0,
+                                   self.sigma_max > 0)
+
     fibre_parameters: ClassVar[tuple[str, ...]] = ("sigma_max", "P1", "P2", "l_ofl", "l_star")
 
 
@@ -305,6 +348,11 @@ class Tendon(_FibreLaw):
 
     def fibre_energy(self, lbar: Expr) -> Expr:
         return exponential_linear_antiderivative(lbar, 1.0, self.l_star_t, self.L1, self.L2, ufl)
+
+    def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """Where A jumps (numpy; field a0 (N,3)): lbar = 1 when L1 > 0 (sigma_tendon starts with slope L1 L2).
+        l_star_t is a C1 point of sigma_tendon (no jump)."""
+        return _muscle_breakpoints(F, fields, self.name, 1.0, self.L1 > 0, False)
 
     fibre_parameters: ClassVar[tuple[str, ...]] = ("L1", "L2", "l_star_t")
 

@@ -14,6 +14,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from forms.fibre_laws import (
+    BLEMKER_PARAMETERS,
+    HOLZAPFEL_OGDEN_PARAMETERS,
+    TRANS_ISO_MOONEY_RIVLIN_PARAMETERS,
+    Blemker,
+    HolzapfelOgden,
+    TransIsoMooneyRivlin,
+)
 from forms.isotropic import Corotated, MooneyRivlin, NeoHookean, StVenantKirchhoff
 from forms.isotropic_more import SNH_VARIANTS, Arap, FixedCorotated, StableNeoHookean, Yeoh
 from forms.law import ParameterError
@@ -159,6 +167,35 @@ BUILT_IN: tuple[LawEntry, ...] = (
              Ogden, bulk_parameter="kappa", volume_constraint="ln J",
              notes=("m_p != 0. The tangent is exact at repeated stretches (a per-point eigenbasis, forms.spectral). "
                     "Source: Ogden 1972, Proc. R. Soc. A 326, 565-584; FEBio's Ogden material (c_i, m_i).",)),
+    LawEntry("holzapfel_ogden", "Passive myocardium (Holzapfel & Ogden 2009, eq. 5.38) in the isochoric invariants "
+             "of Cbar = J^(-2/3) C, with FEBio's default volumetric term: fibre (a0) and sheet (s0) terms act in "
+             "tension only (H the unit step), I8 = a0 . Cbar s0.",
+             "a/(2b)(exp(b(Ibar1 - 3)) - 1) + sum_{i=f,s} H(Ibar4i - 1) a_i/(2 b_i)(exp(b_i (Ibar4i - 1)^2) - 1) "
+             "+ a_fs/(2 b_fs)(exp(b_fs Ibar8^2) - 1) + (kappa/2)(ln J)^2",
+             HOLZAPFEL_OGDEN_PARAMETERS, HolzapfelOgden, fields=("a0", "s0"), bulk_parameter="kappa",
+             volume_constraint="ln J",
+             notes=("Defaults: Holzapfel & Ogden 2009, Table 1 (kappa: a choice of this project).",
+                    "In a configuration file s0 comes from `sheets = { type = ... }`, given as `fibres` is.")),
+    LawEntry("trans_iso_mooney_rivlin", "Transversely isotropic Mooney-Rivlin (Weiss, Maker & Govindjee 1996; "
+             "FEBio's \"trans iso Mooney-Rivlin\") with FEBio's uncoupled active contraction as an energy: "
+             "lbar dF2/dlbar = 0 (lbar < 1), c3 (exp(c4 (lbar - 1)) - 1) (1 <= lbar < lam_max), c5 lbar + c6 "
+             "beyond; lbar dFa/dlbar = T(lbar) = Tmax (E - 1)/(E - 1 + (camax/ca0)^2), E = exp(beta (refl lbar - "
+             "l0)) for refl lbar >= l0, else 0.",
+             "c1 (Ibar1 - 3) + c2 (Ibar2 - 3) + F2(lbar) + alpha Fa(lbar) + (k/2)(ln J)^2",
+             TRANS_ISO_MOONEY_RIVLIN_PARAMETERS, TransIsoMooneyRivlin, fields=("a0", "alpha"), bulk_parameter="k",
+             volume_constraint="ln J",
+             notes=("Defaults: the FEBio user manual's example (c1 ... lam_max, k read as MPa; ca0, beta, l0, refl "
+                    "of its active contraction); Tmax is a choice of this project.",
+                    "psi integrates F2 and Fa by 32-point Gauss-Legendre quadrature (no elementary antiderivative); "
+                    "P and A are exact.")),
+    LawEntry("blemker", "Skeletal muscle (Blemker, Pinsky & Delp 2005; FEBio's \"muscle material\"): Criscione's "
+             "along-fibre and cross-fibre shear invariants B1^2 = Ibar5/Ibar4^2 - 1, B2 = arccosh((Ibar1 Ibar4 - "
+             "Ibar5)/(2 sqrt(Ibar4))), FEBio's (9/16) g3 (ln Ibar4)^2, and the muscle law's fibre curves with "
+             "l_ofl = Lofl, l_star = lam_max, P1 = p1, P2 = p2, sigma_max = smax.",
+             "g1 B1^2 + g2 B2^2 + (9/16) g3 (ln Ibar4)^2 + F2(lbar, alpha) + (k/2)(ln J)^2, "
+             "dF2/dlbar = (smax/Lofl)(f_passive(lbar/Lofl) + alpha f_active(lbar/Lofl))",
+             BLEMKER_PARAMETERS, Blemker, fields=("a0", "alpha"), bulk_parameter="k", volume_constraint="ln J",
+             notes=("Defaults: the FEBio user manual's muscle material example (g3 = 0: FEBio's default).",)),
 )
 
 #: Every built-in law's entry by its name in energies.md, in the order of energies.md.

@@ -71,31 +71,34 @@ class Setup:
 
 def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
     for i, m in enumerate(config.materials):
-        spec = m.fibres
-        if spec is None or spec.type != "laplace":
-            continue
-        for k in ("origin", "insertion"):
-            error = domain.boundary_error(getattr(spec, k))
-            if error:
-                raise ConfigError(f"material[{i}].fibres.{k}: {error}")
-        for j, r in enumerate(spec.regions):
-            error = domain.region_error(r)
-            if error:
-                raise ConfigError(f"material[{i}].fibres.regions[{j}]: {error}")
+        for which in ("fibres", "sheets"):
+            spec = getattr(m, which)
+            if spec is None or spec.type != "laplace":
+                continue
+            for k in ("origin", "insertion"):
+                error = domain.boundary_error(getattr(spec, k))
+                if error:
+                    raise ConfigError(f"material[{i}].{which}.{k}: {error}")
+            for j, r in enumerate(spec.regions):
+                error = domain.region_error(r)
+                if error:
+                    raise ConfigError(f"material[{i}].{which}.regions[{j}]: {error}")
 
 
-def _fibre_fields(config: RunConfig, domain: Domain) -> fem.Function | None:
-    """One DG0 vector Function a0 for all fibre materials, each setting its region's cells."""
-    if not any(m.fibres is not None for m in config.materials):
+def _fibre_fields(config: RunConfig, domain: Domain, attribute: str = "fibres",
+                  name: str = "fibre_direction") -> fem.Function | None:
+    """One DG0 vector Function for all materials with ``attribute`` (fibres: a0; sheets: s0), each setting its
+    region's cells."""
+    if not any(getattr(m, attribute) is not None for m in config.materials):
         return None
-    function = fem.Function(compat.function_space(domain.mesh, "DG", 0, (3,)), name="fibre_direction")
+    function = fem.Function(compat.function_space(domain.mesh, "DG", 0, (3,)), name=name)
     potentials: dict[tuple[str, str, tuple[str, ...]], fem.Function] = {}
     for i, m in enumerate(config.materials):
-        spec = m.fibres
+        spec = getattr(m, attribute)
         if spec is None:
             continue
         field = FibreField(domain, m.region, function=function)
-        key = f"material[{i}].fibres"
+        key = f"material[{i}].{attribute}"
         try:
             if spec.type == "constant":
                 field.constant(spec.origin, spec.insertion)  # type: ignore[arg-type]
@@ -159,6 +162,7 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
     _check_fibre_names(config, domain)
     disc = config.discretization
     fibres = _fibre_fields(config, domain)
+    sheets = _fibre_fields(config, domain, "sheets", "sheet_direction")
     activation = None
     if any("alpha" in forms.law_fields(m.law) for m in config.materials):
         activation = ActivationField(domain)
@@ -167,6 +171,8 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
         law = m.law
         if fibres is not None and "a0" in forms.law_fields(law):
             law = dataclasses.replace(law, a0=fibres)
+        if sheets is not None and "s0" in forms.law_fields(law):
+            law = dataclasses.replace(law, s0=sheets)
         if activation is not None and "alpha" in forms.law_fields(law):
             activation.add(m.region, m.activation)
             law = dataclasses.replace(law, alpha=activation.function)
@@ -186,6 +192,8 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
             problem.add_load_hook(target.update)
     if fibres is not None:
         problem.cell_fields["fibre_direction"] = fibres
+    if sheets is not None:
+        problem.cell_fields["sheet_direction"] = sheets
     if activation is not None:
         problem.add_load_hook(activation.update)
         problem.cell_fields["activation"] = activation.function

@@ -30,18 +30,21 @@ from model import compat
 
 inf = math.inf
 BUILT_IN = ["stvk", "neo_hookean", "mooney_rivlin", "corotated", "fixed_corotated", "arap", "stable_neo_hookean",
-            "yeoh", "shape_target", "volume", "muscle", "tendon", "ogden"]
+            "yeoh", "shape_target", "volume", "muscle", "tendon", "ogden", "holzapfel_ogden",
+            "trans_iso_mooney_rivlin", "blemker"]
 UNITS = {"Pa (stress)", "dimensionless", "choice"}
 
 
 def test_laws_and_fields_are_views_of_the_registry() -> None:
     assert list(forms.REGISTRY) == BUILT_IN
     assert forms.LAWS == {name: forms.REGISTRY[name].law for name in BUILT_IN}
-    assert forms.FIELDS == {"shape_target": ("S",), "volume": ("S",), "muscle": ("a0", "alpha"), "tendon": ("a0",)}
+    assert forms.FIELDS == {"shape_target": ("S",), "volume": ("S",), "muscle": ("a0", "alpha"), "tendon": ("a0",),
+                            "holzapfel_ogden": ("a0", "s0"), "trans_iso_mooney_rivlin": ("a0", "alpha"),
+                            "blemker": ("a0", "alpha")}
     assert all(forms.resolve_law(name) is forms.REGISTRY[name] for name in BUILT_IN)
     law = forms.REGISTRY["neo_hookean"].make(E=1e4, nu=0.3)
     assert law == forms.make_law("neo_hookean", E=1e4, nu=0.3)
-    with pytest.raises(forms.ParameterError, match="unknown law 'neo_hooke' \\(choose from arap, corotated, "):
+    with pytest.raises(forms.ParameterError, match="unknown law 'neo_hooke' \\(choose from arap, blemker, corotated, "):
         forms.make_law("neo_hooke")
     with pytest.raises(forms.ParameterError, match="unknown law 'neo_hooke' .*FILE.py:FUNCTION"):
         forms.resolve_law("neo_hooke")
@@ -77,13 +80,15 @@ def valid(name: str, key: str) -> dict:
         return lame
     if name in ("muscle", "tendon"):
         return {"isotropic": "stvk", **lame} if key in ("E", "nu", "mu", "lmbda") else {}
+    if name in ("holzapfel_ogden", "trans_iso_mooney_rivlin", "blemker"):  # every parameter has a default
+        return {}
     return {"mooney_rivlin": {"c1": 1.0, "c2": 1.0, "K": 1.0}, "shape_target": {"mu": 1.0},
             "volume": {"kappa": 1.0}, "arap": {"mu": 1.0}, "yeoh": {"c1": 1.0, "kappa": 1.0},
             "ogden": {"c1": 1.0, "m1": 2.0, "kappa": 1.0}}[name]
 
 
 #: values that break a bound given in words (relative to another parameter)
-BREAK_CONSTRAINT = {"lmbda": -1.0e3, "l_star": 0.9, "m1": 0.0, "m2": 0.0, "m3": 0.0}
+BREAK_CONSTRAINT = {"lmbda": -1.0e3, "l_star": 0.9, "m1": 0.0, "m2": 0.0, "m3": 0.0, "lam_max": 0.9}
 
 
 def cases() -> list[tuple[str, str]]:

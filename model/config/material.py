@@ -295,9 +295,13 @@ class MaterialConfig(Section):
     law: Annotated[forms.Law, PlainValidator(_make_law, json_schema_input_type=Literal[LAW_NAMES] | UserLawSpec)] = key(
         "name of the hyperelastic law, or \"FILE.py:FUNCTION\" for a law of your own (forms/user_law.py; FILE "
         "relative to the configuration file); its parameters are the table's other keys")
-    fibres: Fibres | None = key("the fibre directions a0 (laws with fibres: muscle, tendon)", default=None)
+    fibres: Fibres | None = key("the fibre directions a0 (laws with fibres: muscle, tendon, holzapfel_ogden, "
+                                "trans_iso_mooney_rivlin, blemker)", default=None)
+    sheets: Fibres | None = key("the sheet directions s0, orthogonal to the fibres (holzapfel_ogden), given as "
+                                "fibres are", default=None)
     activation: Activation = key(
-        "the activation alpha in [0, 1] (law = \"muscle\"): a constant, or a table [[t, alpha], ...] piecewise "
+        "the activation alpha in [0, 1] (law = \"muscle\", \"trans_iso_mooney_rivlin\" or \"blemker\"): a constant, "
+        "or a table [[t, alpha], ...] piecewise "
         "linear in t, constant beyond its ends (t: the load factor, or the time of a dynamic run in s)",
         "dimensionless", default_factory=lambda data: ((0.0, 0.0),) if _takes(data.get("law"), "alpha") else ())
     density: Positive | None = key("mass density, for [dynamics]", "kg/m^3 (mass density)", default=None)
@@ -341,6 +345,14 @@ class MaterialConfig(Section):
             fail(f"only applies to laws with fibres ({', '.join(_laws_with('a0'))}), not {law.name}")
         return value
 
+    @field_validator("sheets", mode="before")
+    @classmethod
+    def _sheet_law(cls, value: Any, info: ValidationInfo) -> Any:
+        law = info.data.get("law")
+        if law is not None and not _takes(law, "s0"):
+            fail(f"only applies to laws with a sheet direction ({', '.join(_laws_with('s0'))}), not {law.name}")
+        return value
+
     @field_validator("activation", mode="before")
     @classmethod
     def _activated_law(cls, value: Any, info: ValidationInfo) -> Any:
@@ -366,6 +378,9 @@ class MaterialConfig(Section):
         if _takes(self.law, "a0") and self.fibres is None:
             fail(f"missing: {self.law.name} needs fibre directions, e.g. fibres = {{ type = \"laplace\", "
                  "origin = \"SURFACE\", insertion = \"SURFACE\" }", "fibres")
+        if _takes(self.law, "s0") and self.sheets is None:
+            fail(f"missing: {self.law.name} needs the sheet directions s0, e.g. sheets = {{ type = \"constant\", "
+                 "origin = [0, 0, 0], insertion = [0, 1, 0] }", "sheets")
         return self
 
     @property

@@ -193,10 +193,12 @@ def _loads(config: RunConfig, size: float, scale: float, t1: float) -> list[_Loa
         value = float(np.linalg.norm(f.value))
         loads.append(_Load(f"body_force[{i}].value", value, value * size, first=scale))
     for i, m in enumerate(config.materials):
-        sigma_max = _law_value(m.law, "sigma_max")
+        # the active fibre stress at alpha = 1: muscle's sigma_max, blemker's smax, trans_iso_mooney_rivlin's Tmax
+        name = next((k for k in ("sigma_max", "smax", "Tmax") if _law_value(m.law, k)), "sigma_max")
+        sigma_max = _law_value(m.law, name)
         if sigma_max and "alpha" in forms.law_fields(m.law) and m.activation:
             peak = max(a for _, a in m.activation)
-            loads.append(_Load(f"material[{i}].sigma_max", sigma_max, sigma_max * peak,
+            loads.append(_Load(f"material[{i}].{name}", sigma_max, sigma_max * peak,
                                first=activation_at(m.activation, t1) / peak if peak else 0.0))
     return loads
 
