@@ -35,6 +35,8 @@ VERIFY_PARAMS: dict[str, dict[str, Any]] = {
     "shape_target": {"mu": 1e3, "kappa": 1e4}, "volume": {"kappa": 1e4}, "muscle": {}, "tendon": {},
     "fixed_corotated": {"E": 1e4, "nu": 0.3}, "arap": {"mu": 1e3},
     "stable_neo_hookean": {"E": 1e4, "nu": 0.3, "variant": "paper"}, "yeoh": {"c1": 1500.0, "c2": -50.0, "kappa": 1e4},
+    "ogden": {"c1": 2000.0, "m1": 4.0, "c2": 300.0, "m2": -2.0, "kappa": 1e4},
+    "holzapfel_ogden": {}, "trans_iso_mooney_rivlin": {}, "blemker": {},
 }
 VERIFY_SAMPLES = 40
 
