@@ -23,7 +23,7 @@ import forms
 from forms.kinematics import right_cauchy_green
 from forms.muscle import Muscle, Tendon
 from model import compat
-from model.verify.reference import deformation_samples
+from model.verify import deformation_samples
 
 # --- the earlier expressions, frozen -------------------------------------------------------------------------------
 

@@ -5,7 +5,7 @@
   integral Ei as FEBio's FEFiberExpLinearUC::DevFiberStrainEnergyDensity writes it (Ei by its series)
   and the active term by 400-point Gauss quadrature; Blemker's B1, B2 with numpy's arccosh and the muscle
   curves integrated numerically. P is its complex-step derivative, A central differences of that P; they
-  are compared with the UFL reference (model.verify.reference) on hard samples away from the breakpoints.
+  are compared with the UFL reference (model.verify) on hard samples away from the breakpoints.
 - The stresses against FEBio's own formulas (numpy, from FEBio's source): the active contraction's
   dev(alpha T a x a)/J (FEUncoupledActiveFiberContraction::ActiveStress), the passive fibre stress
   (FEFiberExpLinearUC::DevFiberStress) and the muscle material's deviatoric stress (FEMuscleMaterial::DevStress).
@@ -28,7 +28,7 @@ import forms
 from model.config import parse
 from model.errors import ConfigError
 from model.pipeline import build
-from model.verify.reference import ReferenceEvaluator
+from model.verify import ReferenceEvaluator
 
 HO = dict(a=59.0, b=8.023, a_f=18472.0, b_f=16.026, a_s=2481.0, b_s=11.12, a_fs=216.0, b_fs=11.436, kappa=1.0e6)
 TIMR = dict(c1=1.0e4, c2=2.0e3, c3=300.0, c4=12.0, c5=2.0e5, lam_max=1.15, k=1.0e6, Tmax=5.0e4, ca0=4.35,
@@ -499,7 +499,7 @@ def test_verify_emits_and_checks_the_sheet_field(shared_tmp) -> None:
     """verify's reference creates the fields from FIELD_SHAPES: s0 is emitted (unit, orthogonal to a0) and checked."""
     from mpi4py import MPI
 
-    from model.verify.reference import check, emit
+    from model.verify import check, emit
 
     out = shared_tmp / f"ho_{MPI.COMM_WORLD.rank}.npz"
     # 5 samples: identity, rotation, uniaxial, isotropic, large stretch (the 6th kind, nearly flat, overflows the

@@ -1,7 +1,7 @@
 """The isotropic laws of issue 11 (forms/isotropic_more.py): stable_neo_hookean (both variants), yeoh, and the
 aliases fixed_corotated and arap.
 
-- psi, P and A from the UFL path (model.verify.reference) against independent numpy implementations written
+- psi, P and A from the UFL path (model.verify) against independent numpy implementations written
   here from the papers' formulas: psi directly (numpy operations that accept a complex F), P by complex step
   of psi (h = 1e-30: exact to rounding), A by fourth-order central differences of the complex-step P (step
   1e-3 times the smallest singular value). Tolerances: psi 1e-12 relative (to the sum of the magnitudes of
@@ -37,7 +37,7 @@ from scipy.spatial.transform import Rotation
 
 import forms
 from model import compat
-from model.verify.reference import reference
+from model.verify import reference
 
 inf = math.inf
 

@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 
 from forms.law import ParameterError
 from forms.registry import resolve_law
-from model.verify.reference import ReferenceEvaluator, deformation_samples
+from model.verify import ReferenceEvaluator, deformation_samples
 
 PARAMS = {"c1": 2.0e3, "m1": 3.5, "c2": 400.0, "m2": -2.0, "c3": 50.0, "m3": 7.0, "kappa": 1.0e4}
 

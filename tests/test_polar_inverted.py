@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from model.verify.reference import ReferenceEvaluator
+from model.verify import ReferenceEvaluator
 from tests.svd_reference import shape_target as svd_shape_target
 
 Q1, Q2 = Rotation.random(2, random_state=3).as_matrix()

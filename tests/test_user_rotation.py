@@ -14,7 +14,7 @@ import pytest
 
 from forms.law import ParameterError
 from forms.registry import resolve_law
-from model.verify.reference import ReferenceEvaluator, deformation_samples
+from model.verify import ReferenceEvaluator, deformation_samples
 
 COROTATED = '''
 import ufl

@@ -5,8 +5,8 @@ seed documents (seeds).
 Modules: evaluator (ReferenceEvaluator: the UFL reference), samples (F and field samples), emitter
 (emit), checker (check, compare), report (Report, CheckRow), layouts (tangent layouts and stress
 measures), files (.npz, .npy directory, CSV, JSON), element (a user's element vector and stiffness),
-seeds (the seed documents' formulas), commands (the command line). The names below are imported on first use, so that
-the command line's parser does not load dolfinx.
+seeds (the seed documents' formulas), commands (the command line). The names below are imported on
+first use, so that the command line's parser does not load dolfinx.
 """
 
 from __future__ import annotations
@@ -23,13 +23,6 @@ _HOME = {
 }
 
 __all__ = sorted(_HOME)
-
-# The former module model.verify.reference is loaded now, so that importing it later never rebinds
-# the name ``reference`` here to the module (Python sets a package's attribute when a submodule is
-# first loaded); the function ``reference`` then comes from __getattr__.
-importlib.import_module("model.verify.reference")
-
-del globals()["reference"]
 
 
 def __getattr__(name: str) -> Any:
