@@ -41,6 +41,9 @@ def main(argv: list[str] | None = None) -> int:
     run_parser = sub.add_parser("run", help="run a TOML configuration")
     run_parser.add_argument("config", type=Path)
     run_parser.add_argument("--out", type=Path, default=None, help="output directory (overrides output.dir)")
+    run_parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
+                            help="override a key of the file: dotted path, value as TOML (material.0.E=2e5, "
+                                 "loading.steps=20, 'boundary.0.value=[0.1]'); repeatable")
     from model.verify.commands import add_parser as add_verify_parser
 
     add_verify_parser(sub)
@@ -63,7 +66,9 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.command == "run":
         try:
-            config = load(args.config)
+            from model.config.overrides import parse_assignments
+
+            config = load(args.config, parse_assignments(args.overrides))
             summary = run(config, args.out)
         except ConfigError as err:
             _error(str(err))

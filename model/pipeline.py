@@ -428,7 +428,7 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     start = time.perf_counter()
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
-    versions = comm.bcast(compat.versions() if comm.rank == 0 else None, root=0)
+    versions, host = comm.bcast((compat.versions(), compat.host()) if comm.rank == 0 else None, root=0)
     if comm.rank == 0:
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
@@ -459,6 +459,8 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         "probe_points": setup.probes.points_by_name(),
         "solver": _solver_summary(config, solver),
         "versions": versions,
+        "host": host,  # rank 0's cores: cpu_count, cpu_affinity (None where the OS does not say)
+        "config": config.document,  # the document after overrides, files made absolute (None: not from parse)
         "units": units_summary(config),
         "wall_time_s": 0.0,
         "status": "running",
