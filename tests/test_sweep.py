@@ -119,6 +119,24 @@ def test_resolved_toml_reads_back() -> None:
     assert tomllib.loads(runs.toml_text(raw)) == raw
 
 
+def test_outcome_reads_status_and_reason(tmp_path: Path) -> None:
+    folder = tmp_path / "run"
+    folder.mkdir()
+    assert runs.outcome(folder, -9) == runs.Outcome("crashed", "killed by signal 9")
+    (folder / "stderr.log").write_text("Traceback ...\nMemoryError: out of memory\n\n")
+    assert runs.outcome(folder, 1).reason == "MemoryError: out of memory"
+    steps = [{"converged": True}, {"converged": False, "snes_reason_name": "DIVERGED_MAX_IT"}]
+    (folder / "summary.json").write_text(json.dumps({"status": "running", "steps": steps}))
+    killed = runs.outcome(folder, -9)
+    assert (killed.status, killed.reason, killed.snes_reason) == ("crashed", "DIVERGED_MAX_IT", "DIVERGED_MAX_IT")
+    assert runs.outcome(folder).status == "running"  # no exit code: a folder found by a later sweep
+    (folder / "summary.json").write_text(json.dumps({"status": "failed", "failure": "gave up", "steps": steps}))
+    assert runs.outcome(folder, 1) == runs.Outcome("failed", "gave up", json.loads((folder / "summary.json")
+                                                                                   .read_text()), "DIVERGED_MAX_IT")
+    (folder / "summary.json").write_text(json.dumps({"status": "completed", "steps": steps}))
+    assert runs.outcome(folder, -15).status == "completed"
+
+
 def test_every_run_is_checked_before_any_starts(config: Path) -> None:
     values = {"material.0.E": [1e4, 2e4, 3e4, -1.0], "loading.steps": [1, 2]}
     with pytest.raises(ConfigError) as err:
@@ -248,6 +266,9 @@ def test_failed_runs_are_rows_and_the_sweep_exits_1(config: Path, tmp_path: Path
                "--set", "loading.max_cutbacks=0,0,0", "--out", str(out)]
     done = subprocess.run(command, env=environment(), capture_output=True, text=True, timeout=600)
     assert done.returncode == 1, done.stderr
+    # not a terminal: one line per finished run
+    assert [line.split()[:2] for line in done.stdout.splitlines() if line.startswith("run ")] == \
+        [["run", f"{i}/3"] for i in (1, 2, 3)]
     frame = pd.read_csv(out / "sweep.csv", keep_default_na=False)
     assert list(frame["status"]) == ["completed", "failed", "invalid"]
     failed = frame.iloc[1]

@@ -179,8 +179,8 @@ class _Progress:
         line = f"run {self.done}/{self.total} {run.hash} ({what}): {result.status}" + \
             (f" ({result.reason})" if result.reason else "") + f", {seconds:.1f} s"
         if self.bar is not None:
+            self.bar.set_postfix_str(f"{run.hash} {result.status}", refresh=False)
             self.bar.update(1)
-            self.bar.set_postfix_str(f"{run.hash} {result.status}")
             if result.status != "completed":
                 self.bar.write(line)
         else:
