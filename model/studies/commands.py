@@ -23,7 +23,9 @@ EPILOG = ("values are TOML (1e4, true, \"text\", [0.1, 0]); a comma inside brack
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """The ``sweep`` sub-command."""
     parser = subparsers.add_parser("sweep", help="run a configuration for many values of some keys, one table",
-                                   description=__doc__.splitlines()[0], epilog=EPILOG,
+                                   description="run a configuration for many values of some keys (child processes, one "
+                                   "per run) and "
+                                   "collect their results in one table (docs/studies.md)", epilog=EPILOG,
                                    formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("config", type=Path)
     parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=V1,V2,...",
