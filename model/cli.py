@@ -1,5 +1,6 @@
 """Command line: ``python -m model run CONFIG [--out DIR]``, ``python -m model verify emit|check|seeds`` and
-``python -m model schema [--out FILE] [--markdown FILE]``.
+``python -m model schema [--out FILE] [--markdown FILE]`` and ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR``
+(model.studies.commands).
 
 Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input.
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
@@ -47,6 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     from model.verify.commands import add_parser as add_verify_parser
 
     add_verify_parser(sub)
+    from model.studies.commands import add_parser as add_sweep_parser
+
+    add_sweep_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
                                    "generated from model.config")
     schema_parser.add_argument("--out", type=Path, default=None,
@@ -60,6 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     _configure_logging()
     if args.command == "verify":
         return _verify(args)
+    if args.command == "sweep":
+        from model.studies.commands import main as sweep_main
+
+        return sweep_main(args)
     from model.config import load
     from model.errors import ConfigError, SolveFailed
     from model.pipeline import run
