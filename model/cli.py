@@ -44,6 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     from model.verify.commands import add_parser as add_verify_parser
 
     add_verify_parser(sub)
+    from model.studies.convergence_cli import add_parser as add_converge_parser
+
+    add_converge_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
                                    "generated from model.config")
     schema_parser.add_argument("--out", type=Path, default=None,
@@ -55,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "schema":
         return _schema(args)
     _configure_logging()
+    if getattr(args, "handler", None) is not None:  # subcommands with a handler of their own (converge)
+        return args.handler(args)
     if args.command == "verify":
         return _verify(args)
     from model.config import load
