@@ -21,9 +21,12 @@ from model.studies.convergence import ConvergenceStudy, QoI, converge, gci, pars
 
 # Celik, Ghia, Roache, Freitas, Coleman, Raad (2008), "Procedure for Estimation and Reporting of Uncertainty Due
 # to Discretization in CFD Applications", J. Fluids Eng. 130, 078001, Table 1 ("Sample calculations of
-# discretization error"): three 2D grids (h = (1/N)^(1/2)), one column per variable phi, values as printed
-# (relative errors and GCI in percent). The inputs (N, phi1..3) are also listed in public GCI calculators (e.g.
-# the "Input data examples from ASME's article" of a GitHub GCI script); the printed results are the paper's.
+# discretization error"): three 2D grids (h = (1/N)^(1/2)), one column per variable phi, values with the digits
+# printed there (relative errors and GCI in percent). The inputs (N1..3, phi1..3 of the three columns) are as
+# listed by public GCI scripts quoting the paper (e.g. a GitHub GCI script's "Input data examples from ASME's
+# article (https://doi.org/10.1115/1.2960953)"); the printed results (r21, r32, p, phi_ext, e_a, e_ext, GCI_fine)
+# were transcribed from the paper's table by the test's author without a copy of it at hand (the searchable
+# sources held the inputs only): check them against the paper.
 CELIK_TABLE_1 = [
     # N1, N2, N3, r21, r32, phi1, phi2, phi3, p, phi_ext21, e_a21 %, e_ext21 %, GCI_fine21 %
     dict(N=(18000, 8000, 4500), r21=1.5, r32=1.333, phi=(6.063, 5.972, 5.863), p=1.53, phi_ext=6.1685,

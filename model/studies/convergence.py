@@ -320,16 +320,22 @@ class ConvergenceStudy:
             scale = abs(r.phi_ext21) if r.phi_ext21 not in (0.0,) and np.isfinite(r.phi_ext21) else 1.0
             err = np.abs(values - r.phi_ext21) / scale
             ok = np.isfinite(err) & (err > 0)
-            ax.loglog(h[ok], err[ok], "o-", label="|phi - phi_ext| / |phi_ext|")
+            if ok.any():
+                ax.loglog(h[ok], err[ok], "o-", label="meshes")
             if np.isfinite(r.p) and ok.any():
                 e1 = abs(r.phi[0] - r.phi_ext21) / scale
                 hs = np.array([h[ok].min(), h[ok].max()])
                 if e1 > 0:
                     ax.loglog(hs, e1 * (hs / r.h[0]) ** r.p, "k--", label=f"slope p = {r.p:.2f}")
+            if not np.isfinite(r.p):
+                ax.text(0.5, 0.5, "no observed order\n(see the warnings)", ha="center", va="center",
+                        transform=ax.transAxes)
             ax.set_xlabel("h = (V / N_cells)^(1/3)")
+            ax.set_ylabel("error estimate |phi - phi_ext| / |phi_ext|")
             ax.set_title(label)
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=8)
+            if ok.any():
+                ax.legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(path, dpi=100)
         plt.close(fig)
