@@ -121,23 +121,29 @@ def test_bad_input_is_refused() -> None:
         parse_refine("mesh.cells")
 
 
-@pytest.mark.parametrize("degree,sizes", [(1, (4, 8, 16)), (2, (2, 4, 8))])
-def test_manufactured_solution_orders(degree: int, sizes: tuple[int, ...]) -> None:
+#: (degree, cells per edge, tolerance on the three-grid order of the L2 and of the H1 error); measured on these
+#: meshes: P1 1.888 and 0.984, P2 2.976 and 1.941 (the P1 L2 order approaches 2 slowly: 1.882 on 6/12/24)
+MANUFACTURED = [(1, (8, 12, 16), (0.15, 0.1)), (2, (4, 6, 8), (0.1, 0.1))]
+
+
+@pytest.mark.parametrize("degree,sizes,tolerance", MANUFACTURED)
+def test_manufactured_solution_orders(degree: int, sizes: tuple[int, ...], tolerance: tuple[float, float]) -> None:
     """The neo_hookean manufactured solution of tests/test_manufactured.py (its solve(): a body force derived
-    by UFL, u = u_ex on the boundary, errors against the exact expression) on three meshes; the QoIs are the L2
-    and H1 norms of the error, whose exact value is 0. The study's order against the exact value (two finest
-    meshes) is within 0.1 of degree + 1 (L2) and degree (H1); the three-grid order of Celik et al.'s eq. 3
-    (which does not know the exact value) is within 0.25 on these coarse meshes (measured: P1 1.81 / 0.95,
-    P2 2.85 / 1.84)."""
+    by UFL, u = u_ex on the boundary, errors against the exact expression) on three meshes (non-constant
+    refinement ratios 1.5 and 1.33); the QoIs are the L2 and H1 norms of the error. The three-grid order of
+    Celik et al.'s eq. 3 (which does not know the exact value) is within 0.1 of degree + 1 (L2) and degree (H1),
+    except the P1 L2 order (within 0.15); the order against the exact value 0 (two finest meshes) is within 0.1
+    of both."""
     from test_manufactured import solve
 
     rows = [dict(zip(("h", "l2_error", "h1_error"), solve(n, degree))) | {"cells": 6 * n ** 3} for n in sizes]
     study = ConvergenceStudy.from_table(pd.DataFrame(rows), ["l2_error", "h1_error"], formal_order=degree + 1,
                                         exact={"l2_error": 0.0, "h1_error": 0.0})
-    report = {k: (r.p_exact, r.p) for k, r in study.results.items()}
-    for label, order in (("l2_error", degree + 1), ("h1_error", degree)):
+    report = {k: (r.p, r.p_exact) for k, r in study.results.items()}
+    for label, order, tol in (("l2_error", degree + 1, tolerance[0]), ("h1_error", degree, tolerance[1])):
+        assert abs(study.results[label].p - order) < tol, report
         assert abs(study.results[label].p_exact - order) < 0.1, report
-        assert abs(study.results[label].p - order) < 0.25, report
+        assert study.results[label].s == 1, report
 
 
 def _cook_config() -> dict:
@@ -152,10 +158,10 @@ def test_cook_study_writes_tables_and_plot(shared_tmp: Path) -> None:
                                                                   "reaction:left:y"],
                      out, base=ROOT / "examples", formal_order=2)
     meshes = study.meshes
-    assert list(meshes["mesh.cells"]) == ["8", "4", "2"]  # fine to coarse
+    assert list(meshes["mesh.cells"]) == [8, 4, 2]  # fine to coarse
     for k, cells in enumerate((2, 4, 8)):
         summary = json.loads((out / f"mesh_{k}" / "summary.json").read_text())
-        row = meshes[meshes["mesh.cells"] == str(cells)].iloc[0]
+        row = meshes[meshes["mesh.cells"] == cells].iloc[0]
         assert row["cells"] == summary["cells"] and row["dofs"] == summary["dofs"]
         # Cook's membrane: the trapezoid (0,0) (48,44) (48,60) (0,44), 1 mm thick: V = 48 * (44 + 16) / 2
         assert row["h"] == pytest.approx((1440.0 / summary["cells"]) ** (1 / 3), rel=1e-9)

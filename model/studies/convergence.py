@@ -36,6 +36,7 @@ obtained otherwise. ``study.write(out)`` writes convergence.csv (a row per QoI),
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -242,8 +243,8 @@ def _as_qoi(q: QoI | str) -> QoI:
 
 @dataclass
 class ConvergenceStudy:
-    """A mesh-convergence study: ``meshes`` (a row per mesh, fine to coarse: the refined value, h, cells,
-    dofs, volume, wall time, status and a column per QoI label), ``results`` (QoI label -> GCIResult of the
+    """A mesh-convergence study: ``meshes`` (a row per mesh, fine to coarse: the refined value (a list as JSON), h,
+    cells, dofs, volume, wall time, status and a column per QoI label), ``results`` (QoI label -> GCIResult of the
     three finest meshes) and ``table`` (a row per QoI)."""
 
     meshes: pd.DataFrame
@@ -443,7 +444,7 @@ def converge(config: str | Path | Mapping[str, Any], refine: Mapping[str, Sequen
                               f"{', '.join(sorted(probes)) or 'none'})")
     records = []
     for k, (value, cfg) in enumerate(zip(values, configs)):
-        record: dict[str, Any] = {key: str(value)}
+        record: dict[str, Any] = {key: value if isinstance(value, (int, float, str)) else json.dumps(value)}
         try:
             summary = run(cfg, directory / f"mesh_{k}", comm)
             status = summary["status"]
@@ -466,7 +467,5 @@ def converge(config: str | Path | Mapping[str, Any], refine: Mapping[str, Sequen
 
 
 def _read_summary(directory: Path, comm: MPI.Comm) -> dict[str, Any]:
-    import json
-
     text = (directory / "summary.json").read_text() if comm.rank == 0 else None
     return json.loads(comm.bcast(text, root=0))
