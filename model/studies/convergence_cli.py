@@ -8,6 +8,7 @@ fewer than three meshes were left for a QoI, 2 bad input (the one-line error nam
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -53,11 +54,11 @@ def main(args: argparse.Namespace) -> int:
         study = converge(args.config, {key: values}, args.qoi, out, overrides=overrides, formal_order=args.order)
     except ConfigError as err:
         if rank0:
-            print(f"error: {err}", flush=True)
+            print(f"error: {err}", file=sys.stderr, flush=True)
         return 2
     except ValueError as err:  # fewer than three meshes with a value (failed runs)
         if rank0:
-            print(f"error: {err}", flush=True)
+            print(f"error: {err}", file=sys.stderr, flush=True)
         return 1
     if rank0:
         meshes = study.meshes
