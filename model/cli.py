@@ -1,10 +1,12 @@
-"""Command line: ``python -m model run CONFIG [--out DIR]``, ``python -m model verify emit|check|seeds`` and
-``python -m model schema [--out FILE] [--markdown FILE]`` and ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR``
-(model.studies.commands).
+"""Command line: ``python -m model run CONFIG [--out DIR] [--set KEY=VALUE ...]``, ``python -m model verify
+emit|check|seeds|element``, ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR`` (model.studies.commands),
+``python -m model converge CONFIG --refine KEY=v1,v2,v3 --qoi ...`` (model.studies.convergence_cli) and
+``python -m model schema [--out FILE] [--markdown FILE]``.
 
 Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input.
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
-the table was produced (a disagreement is a finding, not a failure).
+the table was produced (a disagreement is a finding, not a failure). sweep: 0 every run completed, 1 some
+failed (the table is written), 2 bad input. converge: 0 written, 1 fewer than 3 meshes ran, 2 bad input.
 """
 
 from __future__ import annotations
@@ -51,6 +53,9 @@ def main(argv: list[str] | None = None) -> int:
     from model.studies.commands import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
+    from model.studies.convergence_cli import add_parser as add_converge_parser
+
+    add_converge_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
                                    "generated from model.config")
     schema_parser.add_argument("--out", type=Path, default=None,
@@ -62,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "schema":
         return _schema(args)
     _configure_logging()
+    if getattr(args, "handler", None) is not None:  # subcommands with a handler of their own (converge)
+        return args.handler(args)
     if args.command == "verify":
         return _verify(args)
     if args.command == "sweep":
