@@ -78,13 +78,13 @@ def law_parameters(name: str, E: float = E, nu: float = NU) -> dict[str, Any]:
 
     A law with the Lame sets (E, nu) / (mu, lmbda) among its required parameters gets E, nu; other
     required moduli: mu = E / (2 (1 + nu)), kappa = bulk modulus B = E / (3 (1 - 2 nu)); mooney_rivlin
-    c1 = c2 = mu / 4 (shear modulus 2 (c1 + c2) = mu), K = B / 2 (2 K = kappa); shape_target's kappa
+    c1 = c2 = mu / 4 (shear modulus 2 (c1 + c2) = mu), K = B / 2 (2 K = kappa), ogden's m1 = 2; shape_target's kappa
     (default 0) is set to B so that its volume term is timed too.
     """
     entry = forms.REGISTRY[name]
     mu = E / (2.0 * (1.0 + nu))
     bulk = E / (3.0 * (1.0 - 2.0 * nu))
-    moduli = {"mu": mu, "kappa": bulk, "c1": mu / 4.0, "c2": mu / 4.0, "K": bulk / 2.0}
+    moduli = {"mu": mu, "kappa": bulk, "c1": mu / 4.0, "c2": mu / 4.0, "K": bulk / 2.0, "m1": 2.0}
     params: dict[str, Any] = dict(entry.defaults)
     required = [p.name for p in entry.parameters if p.required and not p.applies]
     if entry.parameter_sets and set(entry.parameter_sets[0]) <= set(required):
@@ -99,7 +99,8 @@ def law_parameters(name: str, E: float = E, nu: float = NU) -> dict[str, Any]:
 
 def law_fields(domain: Any, name: str) -> dict[str, fem.Function]:
     """Per-cell (DG0) fields of law ``name``, as the pipeline builds them: a0 (unit, within 0.3 rad of the
-    x axis, varying per cell), alpha = 0.5, S (symmetric positive definite, eigenvalues 0.8..1.2)."""
+    x axis, varying per cell), s0 (unit, orthogonal to a0), alpha = 0.5, S (symmetric positive definite,
+    eigenvalues 0.8..1.2)."""
     fields = forms.REGISTRY[name].fields
     msh = domain.mesh
     tdim = msh.topology.dim
@@ -111,6 +112,10 @@ def law_fields(domain: Any, name: str) -> dict[str, fem.Function]:
         a0 = FIBRE_AXIS + np.stack([np.zeros(num_cells), tilt[:, 1], tilt[:, 2]], axis=1)
         out["a0"] = fem.Function(compat.function_space(msh, "DG", 0, (3,)), name="a0")
         out["a0"].x.array[: 3 * num_cells] = (a0 / np.linalg.norm(a0, axis=1)[:, None]).reshape(-1)
+        if "s0" in fields:
+            s0 = np.cross(a0, [0.0, 0.0, 1.0])
+            out["s0"] = fem.Function(compat.function_space(msh, "DG", 0, (3,)), name="s0")
+            out["s0"].x.array[: 3 * num_cells] = (s0 / np.linalg.norm(s0, axis=1)[:, None]).reshape(-1)
     if "alpha" in fields:
         out["alpha"] = fem.Function(compat.function_space(msh, "DG", 0), name="alpha")
         out["alpha"].x.array[:] = 0.5
@@ -227,6 +232,8 @@ def newton_case(comm: MPI.Comm, law_name: str, quick: bool) -> dict[str, Any]:
     fields = forms.REGISTRY[law_name].fields
     if "a0" in fields:
         material["fibres"] = {"type": "constant", "origin": [0.0, 0.0, 0.0], "insertion": [1.0, 0.0, 0.0]}
+    if "s0" in fields:
+        material["sheets"] = {"type": "constant", "origin": [0.0, 0.0, 0.0], "insertion": [0.0, 1.0, 0.0]}
     if "alpha" in fields:
         material["activation"] = [[0.0, 0.0], [1.0, 1.0]]
     if "S" in fields:
