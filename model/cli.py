@@ -1,7 +1,8 @@
 """Command line: ``python -m model run CONFIG [--out DIR]``, ``python -m model verify emit|check|seeds`` and
 ``python -m model schema [--out FILE] [--markdown FILE]``.
 
-Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input.
+Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input, 130 / 143
+interrupted by SIGINT / SIGTERM (results kept, summary.json "interrupted"; continue with --restart DIR).
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
 the table was produced (a disagreement is a finding, not a failure).
 """
@@ -41,6 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     run_parser = sub.add_parser("run", help="run a TOML configuration")
     run_parser.add_argument("config", type=Path)
     run_parser.add_argument("--out", type=Path, default=None, help="output directory (overrides output.dir)")
+    run_parser.add_argument("--restart", type=Path, default=None, metavar="DIR",
+                            help="continue the interrupted run in DIR from its last converged step (appends there)")
     from model.verify.commands import add_parser as add_verify_parser
 
     add_verify_parser(sub)
@@ -59,12 +62,21 @@ def main(argv: list[str] | None = None) -> int:
         return _verify(args)
     from model.config import load
     from model.errors import ConfigError, SolveFailed
-    from model.pipeline import run
+    from model.pipeline import Interrupted, run
 
     if args.command == "run":
         try:
+            if args.restart is not None and args.out is not None and args.out.resolve() != args.restart.resolve():
+                raise ConfigError(f"--restart {args.restart} and --out {args.out}: a restart writes into the folder "
+                                  "it continues; give one of them")
             config = load(args.config)
-            summary = run(config, args.out)
+            if args.restart is not None:
+                summary = run(config, args.restart, restart=True)
+            else:
+                summary = run(config, args.out)
+        except Interrupted as err:
+            _error(str(err))
+            return 128 + err.signum
         except ConfigError as err:
             _error(str(err))
             return 2
