@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,23 @@ def _quantize(keys: np.ndarray, scale: float) -> np.ndarray:
     return q.astype(np.int64)
 
 
+#: the quantized keys of the owned dofs of each function space written so far (they do not change in a run)
+#: (FunctionSpace is unhashable: keyed by id, with a weak reference that tells a reused id apart)
+_OWNED_KEYS: dict[int, tuple[Any, np.ndarray]] = {}
+
+
+def _owned_keys(space: Any) -> np.ndarray:
+    cached = _OWNED_KEYS.get(id(space))
+    if cached is not None and cached[0]() is space:
+        return cached[1]
+    owned = space.dofmap.index_map.size_local * space.dofmap.index_map_bs
+    keys = _quantize(dof_keys(space), _scale(space.mesh))[:owned]
+    for key in [k for k, (ref, _) in _OWNED_KEYS.items() if ref() is None]:
+        del _OWNED_KEYS[key]
+    _OWNED_KEYS[id(space)] = (weakref.ref(space), keys)
+    return keys
+
+
 def _scale(msh: Any) -> float:
     x = msh.geometry.x
     size = msh.comm.allreduce(float(np.ptp(x, axis=0).max()) if x.size else 0.0, op=MPI.MAX)
@@ -76,8 +94,7 @@ def write_checkpoint(directory: Path, step: int, functions: dict[str, fem.Functi
     for name, f in functions.items():
         space = f.function_space
         owned = space.dofmap.index_map.size_local * space.dofmap.index_map_bs
-        keys = _quantize(dof_keys(space), _scale(space.mesh))[:owned]
-        parts = comm.gather((keys, f.x.array[:owned].copy()), root=0)
+        parts = comm.gather((_owned_keys(space), f.x.array[:owned].copy()), root=0)
         if comm.rank == 0:
             arrays[f"{name}.keys"] = np.concatenate([p[0] for p in parts])
             arrays[f"{name}.values"] = np.concatenate([p[1] for p in parts])
