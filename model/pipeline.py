@@ -529,8 +529,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png,
                           stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"),
                           resume=checkpoint["step"] if checkpoint else 0,
-                          files=[f for f in earlier.get("files", []) if not f.startswith("checkpoint_")
-                                 and f != "deformed.png"] if earlier else None)
+                          files=[f for f in earlier.get("files", []) if not f.startswith("checkpoint_")]
+                          if earlier else None)
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
     volumes = Volumes(problem)
