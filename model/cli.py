@@ -1,5 +1,7 @@
-"""Command line: ``python -m model run CONFIG [--out DIR]``, ``python -m model verify emit|check|seeds`` and
-``python -m model schema [--out FILE] [--markdown FILE]``.
+"""Command line: ``python -m model run CONFIG [--out DIR] [--set K=V] [--restart DIR]``,
+``python -m model verify emit|check|seeds``, ``python -m model schema [--out FILE] [--markdown FILE]`` and
+``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR``
+(model.studies.commands).
 
 Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input, 130 / 143
 interrupted by SIGINT / SIGTERM (results kept, summary.json "interrupted"; continue with --restart DIR).
@@ -42,11 +44,17 @@ def main(argv: list[str] | None = None) -> int:
     run_parser = sub.add_parser("run", help="run a TOML configuration")
     run_parser.add_argument("config", type=Path)
     run_parser.add_argument("--out", type=Path, default=None, help="output directory (overrides output.dir)")
+    run_parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
+                            help="override a key of the file: dotted path, value as TOML (material.0.E=2e5, "
+                                 "loading.steps=20, 'boundary.0.value=[0.1]'); repeatable")
     run_parser.add_argument("--restart", type=Path, default=None, metavar="DIR",
                             help="continue the interrupted run in DIR from its last converged step (appends there)")
     from model.verify.commands import add_parser as add_verify_parser
 
     add_verify_parser(sub)
+    from model.studies.commands import add_parser as add_sweep_parser
+
+    add_sweep_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
                                    "generated from model.config")
     schema_parser.add_argument("--out", type=Path, default=None,
@@ -60,16 +68,22 @@ def main(argv: list[str] | None = None) -> int:
     _configure_logging()
     if args.command == "verify":
         return _verify(args)
+    if args.command == "sweep":
+        from model.studies.commands import main as sweep_main
+
+        return sweep_main(args)
     from model.config import load
     from model.errors import ConfigError, SolveFailed
     from model.pipeline import Interrupted, run
 
     if args.command == "run":
         try:
+            from model.config.overrides import parse_assignments
+
             if args.restart is not None and args.out is not None and args.out.resolve() != args.restart.resolve():
                 raise ConfigError(f"--restart {args.restart} and --out {args.out}: a restart writes into the folder "
                                   "it continues; give one of them")
-            config = load(args.config)
+            config = load(args.config, parse_assignments(args.overrides))
             if args.restart is not None:
                 summary = run(config, args.restart, restart=True)
             else:

@@ -25,6 +25,7 @@ What differs between the two releases, and where it is handled here:
 
 from __future__ import annotations
 
+import os
 import platform
 import subprocess
 from collections.abc import Sequence
@@ -280,9 +281,10 @@ def set_bc(b: PETSc.Vec, bcs: list[Any], x0: PETSc.Vec | None = None, alpha: flo
 
 # --- provenance ---------------------------------------------------------------------------------------
 
-def versions() -> dict[str, str]:
+def versions() -> dict[str, str | bool]:
     """The versions a result was computed with: dolfinx, PETSc, UFL, basix, numpy, Python, the OS
-    release, and the project's git revision when the checkout has one."""
+    release, and the project's git revision when the checkout has one: ``git_revision`` (the commit, with
+    "-dirty" when the work tree has changes), ``git_commit`` and ``git_dirty`` (a boolean)."""
     import basix
 
     petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
@@ -291,7 +293,15 @@ def versions() -> dict[str, str]:
     revision = git_revision()
     if revision:
         out["git_revision"] = revision
+        out["git_commit"], out["git_dirty"] = revision.removesuffix("-dirty"), revision.endswith("-dirty")
     return out
+
+
+def host() -> dict[str, int | None]:
+    """The host's cores: ``cpu_count`` (os.cpu_count()) and, where the OS says (Linux), ``cpu_affinity``, the
+    cores this process may run on (os.sched_getaffinity)."""
+    affinity = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
+    return {"cpu_count": os.cpu_count(), "cpu_affinity": affinity}
 
 
 def _os_release() -> str:

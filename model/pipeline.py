@@ -510,7 +510,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     start = time.perf_counter()
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
-    versions = comm.bcast(compat.versions() if comm.rank == 0 else None, root=0)
+    versions, host = comm.bcast((compat.versions(), compat.host()) if comm.rank == 0 else None, root=0)
     if comm.rank == 0:
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
@@ -547,6 +547,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         "probe_points": setup.probes.points_by_name(),
         "solver": _solver_summary(config, solver),
         "versions": versions,
+        "host": host,  # rank 0's cores: cpu_count, cpu_affinity (None where the OS does not say)
+        "config": config.document,  # the document after overrides, files made absolute (None: not from parse)
         "units": units_summary(config),
         "wall_time_s": 0.0,
         "status": "running",

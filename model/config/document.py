@@ -66,6 +66,12 @@ class RunConfig(Section):
     units: UnitsConfig = key("the system of units the numbers are in (labels only)", default_factory=UnitsConfig)
 
     @property
+    def document(self) -> dict[str, Any] | None:
+        """The TOML document this configuration was checked from, after overrides, with the files it names made
+        absolute (model.config.overrides.resolved; set by ``parse``): summary.json's "config"."""
+        return self.__dict__.get("_document")
+
+    @property
     def petsc_options(self) -> dict[str, str | int | float | bool]:
         """solver.petsc_options."""
         return self.solver.petsc_options
@@ -148,7 +154,11 @@ SECTIONS = tuple(f.alias or name for name, f in RunConfig.model_fields.items())
 
 def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
     """Check a parsed TOML document and build the RunConfig (file paths relative to ``base``)."""
-    return validate(RunConfig, raw, context={"base": Path(base)})
+    from model.config.overrides import resolved
+
+    config = validate(RunConfig, raw, context={"base": Path(base)})
+    config.__dict__["_document"] = resolved(raw, Path(base))  # not a field: equality and dumps ignore it
+    return config
 
 
 def read(path: str | Path) -> dict[str, Any]:
