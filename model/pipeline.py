@@ -60,7 +60,7 @@ from model.errors import ConfigError, SolveFailed
 from model.fields.activation import ActivationField
 from model.fields.fibres import FibreField, solve_laplace
 from model.fields.targets import TargetField
-from model.output.checkpoint import read_checkpoint, write_checkpoint
+from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
 from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.measurements import Volumes, reactions
@@ -591,15 +591,19 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
                 functions[f"multiplier_{i}"] = c.multiplier
         return functions
 
-    def write_state(next_increment: float) -> None:
+    def write_state(next_increment: float) -> int | None:
+        """Checkpoint the converged state; returns the step of the checkpoint it replaces (remove it once
+        summary.json names the new one)."""
         step = writer.count
         meta = {"step": step, "summary_steps": len(summary["steps"]), "load_factor": float(problem.time),
                 "increment": next_increment}
         if dynamics is not None:
             meta.update(time=dynamics.time, dissipated_energy=dynamics.dissipated_energy)
-        files = write_checkpoint(directory, step, state(), meta, previous=saved_checkpoint.get("step"))
+        files = write_checkpoint(directory, step, state(), meta)
+        previous = saved_checkpoint.get("step")
         saved_checkpoint.clear()
         saved_checkpoint.update(meta, files=files)
+        return previous if previous != step else None
 
     def record_step(t: float, r: Any, extra: dict[str, Any], next_increment: float) -> None:
         step: dict[str, Any] = {
@@ -634,9 +638,10 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
                 step["sliding"] = {c.surface: {"max_gap": c.max_gap(), "force": c.force()} for c in setup.sliding}
             writer.write_step(t)
         summary["steps"].append(step)
-        if r.converged:
-            write_state(next_increment)
+        replaced = write_state(next_increment) if r.converged else None
         save()
+        if replaced is not None:
+            remove_checkpoint(directory, replaced, comm)
         if comm.rank == 0:
             n = len(summary["steps"])
             status = "converged" if r.converged else f"FAILED ({r.reason_name}), cutting back"

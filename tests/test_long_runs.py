@@ -28,7 +28,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 
 from model import compat
-from model.output.checkpoint import read_checkpoint, write_checkpoint
+from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
 from model.output.writer import XdmfSeries
 from tests.conftest import EXAMPLES, ROOT, serial_only, write_toml
 
@@ -203,7 +203,7 @@ def test_signal_ends_the_run_cleanly(tmp_path: Path, signum: int, code: int) -> 
 
 
 @serial_only
-def test_sigkill_keeps_every_completed_step(tmp_path: Path) -> None:
+def test_sigkill_keeps_every_completed_step_and_restarts(tmp_path: Path) -> None:
     config = _write_config(_uniaxial(60), tmp_path)
     out = tmp_path / "out"
     result = _interrupt(config, out, signal.SIGKILL)
@@ -213,6 +213,11 @@ def test_sigkill_keeps_every_completed_step(tmp_path: Path) -> None:
     converged = [s for s in summary["steps"] if s["converged"]]
     assert len(converged) >= 2
     _check_series(out, converged, at_least=True)
+    # the checkpoint summary.json names exists, and the restart from it reaches the uninterrupted answer
+    restarted = _run(config, "--restart", str(out))
+    reference = _run(config, "--out", str(tmp_path / "reference"))
+    np.testing.assert_allclose(_final_probes(restarted), _final_probes(reference), rtol=0, atol=1e-10)
+    _check_series(out, [s for s in restarted["steps"] if s["converged"]])
 
 
 def _final_probes(summary: dict[str, Any]) -> np.ndarray:
@@ -305,8 +310,9 @@ def test_checkpoint_round_trip_mixed_space(shared_tmp: Path) -> None:
     np.testing.assert_allclose(p_back.x.array, dofs[:, 0] - 2 * dofs[:, 1] + dofs[:, 2] ** 3, atol=1e-14)
     nodes = vector.tabulate_dof_coordinates()
     np.testing.assert_allclose(back["u_n"].x.array.reshape(-1, 3), 2 * _field(nodes.T).T, atol=1e-14)
-    write_checkpoint(shared_tmp, 4, {"solution": w}, {}, previous=3)
-    MPI.COMM_WORLD.barrier()
+    write_checkpoint(shared_tmp, 4, {"solution": w}, {})
+    assert sorted(p.name for p in shared_tmp.glob("checkpoint_*")) == ["checkpoint_0003.npz", "checkpoint_0004.npz"]
+    remove_checkpoint(shared_tmp, 3, MPI.COMM_WORLD)
     assert sorted(p.name for p in shared_tmp.glob("checkpoint_*")) == ["checkpoint_0004.npz"]
     other = fem.Function(compat.function_space(mesh.create_unit_cube(MPI.COMM_WORLD, 3, 2, 2), "Lagrange", 1, (3,)))
     with pytest.raises(ValueError, match="dofs of 'solution' are not in the checkpoint"):

@@ -14,9 +14,9 @@ procedural targets are functions of the load factor (time) and follow from it.
 Reading maps the values back by those keys onto the dofs of each rank, so a restart may use another
 number of ranks (and partition) than the run it continues, on the same mesh and discretization; a dof
 not found gives a one-line error. Rank 0 holds the whole state while writing and reading (the limit of
-this format on large meshes). Writing goes through a temporary name, fsync and os.replace, then the
-previous step's file is removed: after a kill at any moment a complete checkpoint exists, and
-summary.json (written after it) names it.
+this format on large meshes). Writing goes through a temporary name, fsync and os.replace; the
+pipeline then rewrites summary.json to name the new checkpoint and only then removes the previous one
+(remove_checkpoint): after a kill at any moment the checkpoint summary.json names exists, complete.
 """
 
 from __future__ import annotations
@@ -84,10 +84,10 @@ def _scale(msh: Any) -> float:
     return 1e-9 * (size or 1.0)
 
 
-def write_checkpoint(directory: Path, step: int, functions: dict[str, fem.Function], meta: dict[str, Any],
-                     previous: int | None = None) -> list[str]:
-    """Write checkpoint ``step`` of ``functions`` (collective; rank 0 writes) and then remove checkpoint
-    ``previous``; returns [the file's name] on every rank."""
+def write_checkpoint(directory: Path, step: int, functions: dict[str, fem.Function],
+                     meta: dict[str, Any]) -> list[str]:
+    """Write checkpoint ``step`` of ``functions`` (collective; rank 0 writes); returns [the file's name] on
+    every rank. The previous checkpoint stays until remove_checkpoint (after summary.json names this one)."""
     directory = Path(directory)
     comm = next(iter(functions.values())).function_space.mesh.comm
     arrays: dict[str, np.ndarray] = {}
@@ -106,13 +106,18 @@ def write_checkpoint(directory: Path, step: int, functions: dict[str, fem.Functi
             out.flush()
             os.fsync(out.fileno())
         os.replace(tmp, directory / name)
-        if previous is not None and previous != step:
-            try:
-                (directory / checkpoint_name(previous)).unlink()
-            except FileNotFoundError:
-                pass
     comm.barrier()
     return [name]
+
+
+def remove_checkpoint(directory: Path, step: int, comm: MPI.Comm) -> None:
+    """Remove checkpoint ``step`` (rank 0; collective), if it exists."""
+    if comm.rank == 0:
+        try:
+            (Path(directory) / checkpoint_name(step)).unlink()
+        except FileNotFoundError:
+            pass
+    comm.barrier()
 
 
 def read_checkpoint(directory: Path, step: int, functions: dict[str, fem.Function]) -> dict[str, Any]:
