@@ -1,9 +1,10 @@
-"""Command line: ``python -m model run CONFIG [--out DIR] [--set KEY=VALUE ...]``, ``python -m model verify
-emit|check|seeds|element``, ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR`` (model.studies.commands),
-``python -m model converge CONFIG --refine KEY=v1,v2,v3 --qoi ...`` (model.studies.convergence_cli) and
-``python -m model schema [--out FILE] [--markdown FILE]``.
+"""Command line: ``python -m model run CONFIG [--out DIR] [--set KEY=VALUE ...] [--restart DIR]``,
+``python -m model verify emit|check|seeds|element``, ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR``
+(model.studies.commands), ``python -m model converge CONFIG --refine KEY=v1,v2,v3 --qoi ...``
+(model.studies.convergence_cli) and ``python -m model schema [--out FILE] [--markdown FILE]``.
 
-Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input.
+Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input, 130 / 143
+interrupted by SIGINT / SIGTERM (results kept, summary.json "interrupted"; continue with --restart DIR).
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
 the table was produced (a disagreement is a finding, not a failure). sweep: 0 every run completed, 1 some
 failed (the table is written), 2 bad input. converge: 0 written, 1 fewer than 3 meshes ran, 2 bad input.
@@ -47,6 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     run_parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                             help="override a key of the file: dotted path, value as TOML (material.0.E=2e5, "
                                  "loading.steps=20, 'boundary.0.value=[0.1]'); repeatable")
+    run_parser.add_argument("--restart", type=Path, default=None, metavar="DIR",
+                            help="continue the interrupted run in DIR from its last converged step (appends there)")
     from model.verify.commands import add_parser as add_verify_parser
 
     add_verify_parser(sub)
@@ -77,14 +80,23 @@ def main(argv: list[str] | None = None) -> int:
         return sweep_main(args)
     from model.config import load
     from model.errors import ConfigError, SolveFailed
-    from model.pipeline import run
+    from model.pipeline import Interrupted, run
 
     if args.command == "run":
         try:
             from model.config.overrides import parse_assignments
 
+            if args.restart is not None and args.out is not None and args.out.resolve() != args.restart.resolve():
+                raise ConfigError(f"--restart {args.restart} and --out {args.out}: a restart writes into the folder "
+                                  "it continues; give one of them")
             config = load(args.config, parse_assignments(args.overrides))
-            summary = run(config, args.out)
+            if args.restart is not None:
+                summary = run(config, args.restart, restart=True)
+            else:
+                summary = run(config, args.out)
+        except Interrupted as err:
+            _error(str(err))
+            return 128 + err.signum
         except ConfigError as err:
             _error(str(err))
             return 2

@@ -18,8 +18,19 @@ reason and is followed by a cut-back.
 
 One run per output folder: before anything is solved or written, the files an earlier run's
 summary.json accounts for are removed (model.output.writer.remove_earlier_run; a user's other files
-stay), and the new summary.json lists in "files" every file this run wrote there, kept current. There
-is no restart option; a future --restart would keep the earlier run's files instead.
+stay), and the new summary.json lists in "files" every file this run wrote there, kept current.
+
+Interruption and restart: SIGINT and SIGTERM (on any rank; mpirun forwards them) set a flag that every
+rank checks collectively (an allreduce) after each attempted step, so all ranks stop at the same step:
+the step being solved when the signal came is finished and recorded, the outputs are complete (each
+step's XDMF part is closed when written), summary.json says status "interrupted" with "signal" and
+"last_completed_step", and run() raises Interrupted (the CLI exits 128 + the signal number: 130, 143).
+After every converged step a checkpoint is written (model.output.checkpoint) and summary.json's
+"checkpoint" names it. ``run(config, DIR, restart=True)`` (``--restart DIR``) keeps the earlier run's
+files and summary steps up to that checkpoint, restores the state (solution, dynamics' u_n, v_n, a_n,
+time, contact multipliers, load factor and the cut-back increment) and goes on, appending to the same
+XDMF series and VTU numbering; summary.json then covers every step and lists the restarts in "restarts".
+The restart needs the same mesh and discretization, not the same number of ranks (model.output.checkpoint).
 
 In a dynamic run the "load factor" passed to expressions, activation curves and bone motions is the
 time t, and constant loads are scaled by min(t / load_ramp, 1).
@@ -28,7 +39,9 @@ time t, and constant loads are scaled by min(t / load_ramp, 1).
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
+import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,6 +60,7 @@ from model.errors import ConfigError, SolveFailed
 from model.fields.activation import ActivationField
 from model.fields.fibres import FibreField, solve_laplace
 from model.fields.targets import TargetField
+from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
 from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.measurements import Volumes, reactions
@@ -55,6 +69,47 @@ from model.solvers.loadstepping import continuation, step_loads
 from model.solvers.newton import NewtonSolver
 
 log = logging.getLogger(__name__)
+
+
+class Interrupted(Exception):
+    """A run stopped by SIGINT or SIGTERM after the step it was solving (outputs closed, summary.json
+    "interrupted"). ``signum``: the signal; a command-line exit code is 128 + signum."""
+
+    def __init__(self, signum: int, message: str) -> None:
+        super().__init__(message)
+        self.signum = signum
+
+
+class _StopFlag:
+    """Catches SIGINT and SIGTERM while a run steps (in the main thread; elsewhere it never triggers): the
+    first sets the flag, a second SIGINT raises KeyboardInterrupt at once. ``check(comm)`` is collective:
+    the largest signal number any rank got (0: none)."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.signum = 0
+        self.previous: dict[int, Any] = {}
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self.signum and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.signum = signum
+
+    def __enter__(self) -> _StopFlag:
+        try:
+            for s in self.SIGNALS:
+                self.previous[s] = signal.signal(s, self._handle)
+        except ValueError:  # not the main thread: no handlers
+            pass
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        for s, handler in self.previous.items():
+            signal.signal(s, handler)
+
+    def check(self, comm: MPI.Comm) -> int:
+        return int(comm.allreduce(self.signum, op=MPI.MAX))
 
 
 @dataclass
@@ -415,16 +470,43 @@ def _initial_equilibrium(setup: Setup, config: RunConfig) -> None:
     log.info("initial equilibrium reached (activation continuation)")
 
 
+def _earlier_summary(directory: Path, comm: MPI.Comm) -> dict[str, Any]:
+    """The summary.json of the run a restart continues (rank 0 reads, every rank gets it); ConfigError when it
+    is missing or has no checkpoint."""
+    path = Path(directory) / SUMMARY
+    summary, error = None, None
+    if comm.rank == 0:
+        try:
+            summary = json.loads(path.read_text())
+        except (OSError, ValueError) as err:
+            error = f"--restart {directory}: cannot read {path}: {str(err).splitlines()[0]}"
+        else:
+            if not isinstance(summary, dict) or not isinstance(summary.get("checkpoint"), dict):
+                error = (f"--restart {directory}: {path} has no checkpoint (the run stopped before its first "
+                         "converged step, or was written by a version without checkpoints)")
+    summary, error = comm.bcast((summary, error), root=0)
+    if error:
+        raise ConfigError(error)
+    return summary  # type: ignore[return-value]
+
+
 def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD, *,
-        objective: bool | None = None) -> dict[str, Any]:
+        objective: bool | None = None, restart: bool = False) -> dict[str, Any]:
     """Run a configuration; returns the summary (also written to OUT/summary.json).
 
     ``objective``: whether SNES gets the total potential as its objective (make_solver; None, the default:
     where the problem has one). False gives the residual-norm line searches (benchmarks/line_search.py).
+    ``restart``: continue the earlier run in OUT from its last checkpoint (module docstring).
 
     Raises ConfigError before any solve on bad input, SolveFailed (after writing
-    the summary) when SNES fails beyond the allowed cut-backs.
+    the summary) when SNES fails beyond the allowed cut-backs, Interrupted after SIGINT or SIGTERM.
     """
+    with _StopFlag() as stop:
+        return _run(config, out, comm, objective, restart, stop)
+
+
+def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | None, restart: bool,
+         stop: _StopFlag) -> dict[str, Any]:
     start = time.perf_counter()
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
@@ -432,17 +514,23 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     if comm.rank == 0:
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
-    remove_earlier_run(directory, comm)  # before any solve and before anything is written there
+    earlier = _earlier_summary(directory, comm) if restart else None
+    if earlier is None:
+        remove_earlier_run(directory, comm)  # before any solve and before anything is written there
     from model.solvers.scale import scale_check
 
     scale = scale_check(problem, config)  # before any solve: loads, moduli and size against the units
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
-    if dynamic and config.dynamics.initial == "equilibrium":
+    if dynamic and config.dynamics.initial == "equilibrium" and earlier is None:
         _initial_equilibrium(setup, config)
     dynamics = _dynamics(setup, config) if dynamic else None
     solver = make_solver(problem, config, setup.contacts, objective=objective)
+    checkpoint = earlier["checkpoint"] if earlier is not None else None
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png,
-                          stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"))
+                          stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"),
+                          resume=checkpoint["step"] if checkpoint else 0,
+                          files=[f for f in earlier.get("files", []) if not f.startswith("checkpoint_")]
+                          if earlier else None)
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
     volumes = Volumes(problem)
@@ -471,6 +559,12 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         summary["solver"]["line_search"] = line_search
     if setup.probes.snapped:
         summary["snapped_probes"] = setup.probes.snapped
+    previous_time = 0.0
+    if earlier is not None:
+        summary["steps"] = earlier["steps"][: checkpoint["summary_steps"]]
+        where = {"time": checkpoint["time"]} if dynamic else {"load_factor": checkpoint["load_factor"]}
+        summary["restarts"] = [*earlier.get("restarts", []), {"from_step": checkpoint["step"], **where}]
+        previous_time = float(earlier.get("wall_time_s", 0.0))
     summary["scale_check"] = scale.figures
     summary.setdefault("warnings", []).extend(scale.warnings)
     if dynamic:
@@ -478,13 +572,40 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
         summary["dynamics"] = {"scheme": spec.scheme, "dt": spec.dt, "end_time": spec.end_time,
                                "rayleigh": list(spec.rayleigh)}
 
+    saved_checkpoint: dict[str, Any] = dict(checkpoint) if checkpoint else {}
+
     def save() -> None:
-        summary["wall_time_s"] = time.perf_counter() - start
-        summary["files"] = sorted({*writer.files, SUMMARY})
+        summary["wall_time_s"] = previous_time + time.perf_counter() - start
+        if saved_checkpoint:
+            summary["checkpoint"] = dict(saved_checkpoint)
+        summary["files"] = sorted({*writer.files, *saved_checkpoint.get("files", []), SUMMARY})
         if comm.rank == 0:
             write_json_atomic(directory / "summary.json", summary)
 
-    def record_step(t: float, r: Any, extra: dict[str, Any]) -> None:
+    def state() -> dict[str, fem.Function]:
+        functions = {"solution": problem.solution}
+        if dynamics is not None:
+            functions.update(u_n=dynamics.u_n, v_n=dynamics.v_n, a_n=dynamics.a_n)
+        for i, c in enumerate(setup.contacts):
+            if isinstance(getattr(c, "multiplier", None), fem.Function):
+                functions[f"multiplier_{i}"] = c.multiplier
+        return functions
+
+    def write_state(next_increment: float) -> int | None:
+        """Checkpoint the converged state; returns the step of the checkpoint it replaces (remove it once
+        summary.json names the new one)."""
+        step = writer.count
+        meta = {"step": step, "summary_steps": len(summary["steps"]), "load_factor": float(problem.time),
+                "increment": next_increment}
+        if dynamics is not None:
+            meta.update(time=dynamics.time, dissipated_energy=dynamics.dissipated_energy)
+        files = write_checkpoint(directory, step, state(), meta)
+        previous = saved_checkpoint.get("step")
+        saved_checkpoint.clear()
+        saved_checkpoint.update(meta, files=files)
+        return previous if previous != step else None
+
+    def record_step(t: float, r: Any, extra: dict[str, Any], next_increment: float) -> None:
         step: dict[str, Any] = {
             "load_factor": float(problem.load_factor.value) if dynamic else t,
             **extra,
@@ -517,29 +638,77 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
                 step["sliding"] = {c.surface: {"max_gap": c.max_gap(), "force": c.force()} for c in setup.sliding}
             writer.write_step(t)
         summary["steps"].append(step)
+        replaced = write_state(next_increment) if r.converged else None
         save()
+        if replaced is not None:
+            remove_checkpoint(directory, replaced, comm)
         if comm.rank == 0:
             n = len(summary["steps"])
             status = "converged" if r.converged else f"FAILED ({r.reason_name}), cutting back"
             what = "t" if dynamic else "load"
             log.info("step %3d  %s %.4f  newton %2d  |R| %.3e  %s", n, what, t, r.iterations, r.residual_norm,
                      status)
+        signum = stop.check(comm)
+        if signum:
+            raise Interrupted(signum, f"interrupted by {signal.Signals(signum).name}")
+
+    increment = None
+    if checkpoint is not None:
+        restored = {k: fem.Function(f.function_space) for k, f in state().items()}
+        try:
+            meta = read_checkpoint(directory, checkpoint["step"], restored)
+        except ValueError as err:
+            raise ConfigError(f"--restart {directory}: {err}") from None
+        increment = meta["increment"]
 
     if dynamic:
         from model.solvers.dynamics import step_time
 
         problem.set_load_factor(0.0)
         dynamics.initialize(time=0.0, load_factor=0.0)
+        if checkpoint is not None:
+            problem.set_load_factor(meta["load_factor"])
+            for name in ("u_n", "v_n", "a_n"):
+                getattr(dynamics, name).x.array[:] = restored[name].x.array
+            dynamics.time = float(meta["time"])
+            dynamics.dissipated_energy = float(meta["dissipated_energy"])
         save()
         spec = config.dynamics
-        ok = step_time(solver, dynamics, spec.end_time, spec.dt,
-                       lambda rec: record_step(rec.time, rec.result, {"time": rec.time, "dt": rec.dt}),
-                       max_cutbacks=config.loading.max_cutbacks, growth=config.loading.growth)
+        stepping = lambda: step_time(  # noqa: E731
+            solver, dynamics, spec.end_time, spec.dt,
+            lambda rec: record_step(rec.time, rec.result, {"time": rec.time, "dt": rec.dt}, rec.next_increment),
+            max_cutbacks=config.loading.max_cutbacks, growth=config.loading.growth, increment=increment)
     else:
-        problem.set_load_factor(0.0)
+        problem.set_load_factor(0.0 if checkpoint is None else meta["load_factor"])
         save()
-        ok = step_loads(solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth,
-                        lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds}))
+        stepping = lambda: step_loads(  # noqa: E731
+            solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth,
+            lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds}, rec.next_increment),
+            increment=increment)
+    if checkpoint is not None:
+        problem.solution.x.array[:] = restored["solution"].x.array
+        for i, c in enumerate(setup.contacts):
+            if f"multiplier_{i}" in restored:
+                c.multiplier.x.array[:] = restored[f"multiplier_{i}"].x.array
+        problem.invalidate_state()
+        if comm.rank == 0:
+            log.info("restarted from step %d (load factor %.6g) of %s", checkpoint["step"], meta["load_factor"],
+                     directory)
+    try:
+        ok = stepping()
+    except Interrupted as err:
+        summary["status"] = "interrupted"
+        summary["signal"] = signal.Signals(err.signum).name
+        summary["last_completed_step"] = writer.count
+        writer.close()
+        save()
+        solver.destroy()
+        if dynamics is not None:
+            dynamics.destroy()
+        if comm.rank == 0:
+            log.warning("%s: stopped after %d completed steps; summary.json says \"interrupted\"; continue with "
+                        "--restart %s", err, writer.count, directory)
+        raise
     summary["status"] = "completed" if ok else "failed"
     if not ok:
         summary["failure"] = ok.reason

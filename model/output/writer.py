@@ -15,6 +15,15 @@ The VTU files (meshio) are written on rank 0 from the whole mesh gathered there;
 the PNG is rendered from the last VTU (model.output.render, in a subprocess), its colour bar titled
 with the stress unit and its title line giving the largest displacement with the length unit.
 
+The XDMF time series survives a killed process (SIGKILL included): each converged step goes to a file of
+its own, results_NNNN.h5 (dolfinx's XDMFFile, opened and closed in that step), and results.xdmf is an
+index rewritten after the step's file is closed (written to results.xdmf.tmp, fsync'ed, os.replace'd,
+so a reader sees the old index or the new one, never half of one). The mesh is in results.h5, written
+once. results.xdmf keeps dolfinx's layout (a Uniform grid "mesh" and one temporal collection per field,
+whose grids xi:include the mesh), so ParaView, pyvista (VTK's XDMF reader) and meshio's
+TimeSeriesReader read it; a step whose .h5 is half written when the process dies is not in the index.
+A restarted run (``ResultWriter(..., resume=N)``) keeps the first N steps of the index and writes on.
+
 One run per folder: ``ResultWriter.files`` lists every file the writer put into the folder (names
 relative to it, the same list on every rank), which the pipeline records as summary.json's "files";
 ``remove_earlier_run`` deletes, before a new run writes anything, the files an earlier run's
@@ -27,6 +36,7 @@ import json
 import logging
 import os
 import subprocess
+import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
@@ -113,9 +123,140 @@ def remove_earlier_run(directory: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> int:
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     """Write JSON through a temporary file and a rename, so a reader never sees half a file."""
+    write_text_atomic(path, json.dumps(data, indent=1))
+
+
+def write_text_atomic(path: Path, text: str, sync: bool = False) -> None:
+    """Write ``text`` to path.tmp, (``sync``: fsync it), then os.replace it onto ``path``: a reader (or a
+    process killed at any point) sees the old file or the new one, never half of one."""
+    path = Path(path)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
+    with open(tmp, "w") as f:
+        f.write(text)
+        if sync:
+            f.flush()
+            os.fsync(f.fileno())
     os.replace(tmp, path)
+
+
+def _fsync(path: Path) -> None:
+    """Flush a closed file's data to the disk (a power cut after this keeps it)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+XINCLUDE = "http://www.w3.org/2001/XInclude"
+#: what dolfinx's step grids include from the index: the Topology and Geometry of the first Uniform grid
+MESH_POINTER = "xpointer(/Xdmf/Domain/Grid[@GridType='Uniform'][1]/*[self::Topology or self::Geometry])"
+
+
+class XdmfSeries:
+    """A crash-safe XDMF time series: the mesh in STEM.h5, step k in STEM_kkkk.h5, and STEM.xdmf an index
+    rewritten atomically after each step (write_text_atomic). Collective (every rank writes its part of the
+    .h5 files through dolfinx; rank 0 writes the index).
+
+    ``resume``: keep the first ``resume`` steps of an existing index (a restart) instead of starting anew.
+    """
+
+    def __init__(self, msh: Any, directory: Path, stem: str = "results", resume: int = 0) -> None:
+        self.comm = msh.comm
+        self.mesh = msh
+        self.directory = Path(directory)
+        self.stem = stem
+        self.index = self.directory / f"{stem}.xdmf"
+        #: per field name: the XML of its step grids, in order
+        self.series: dict[str, list[str]] = {}
+        self.steps = 0
+        mesh_grid = None
+        if resume:
+            if self.comm.rank == 0:
+                mesh_grid, self.series = _read_index(self.index, resume)
+            mesh_grid, self.series = self.comm.bcast((mesh_grid, self.series), root=0)
+            self.steps = resume
+        else:
+            with XDMFFile(self.comm, str(self.index), "w") as f:
+                f.write_mesh(msh)
+            if self.comm.rank == 0:
+                mesh_grid, _ = _read_index(self.index, 0)
+        self.mesh_grid = mesh_grid
+        self._write_index()
+
+    def step_file(self, k: int) -> str:
+        return f"{self.stem}_{k:04d}.h5"
+
+    def write(self, functions: list[fem.Function], time: float) -> str:
+        """Write one step (collective); returns the name of its .h5 file. The index lists the step once the
+        file is closed and synced."""
+        k = self.steps + 1
+        part = self.directory / f"{self.stem}_{k:04d}.xdmf"
+        from dolfinx import log as dolfinx_log
+
+        level = dolfinx_log.get_log_level()
+        dolfinx_log.set_log_level(dolfinx_log.LogLevel.ERROR)  # "No mesh found": it is in STEM.h5
+        try:
+            with XDMFFile(self.comm, str(part), "w") as f:
+                for function in functions:
+                    f.write_function(function, time)
+        finally:
+            dolfinx_log.set_log_level(level)
+        if self.comm.rank == 0:
+            _fsync(self.directory / self.step_file(k))
+            root = ET.parse(part).getroot()
+            for collection in root.iter("Grid"):
+                if collection.get("GridType") != "Collection":
+                    continue
+                for grid in collection.findall("Grid"):
+                    self.series.setdefault(collection.get("Name", ""), []).append(_step_grid(grid))
+            self.steps = k
+            self._write_index()
+            part.unlink()
+        self.steps = k
+        self.comm.barrier()
+        return self.step_file(k)
+
+    def _write_index(self) -> None:
+        if self.comm.rank != 0:
+            return
+        collections = "".join(
+            f'    <Grid Name="{name}" GridType="Collection" CollectionType="Temporal">\n{"".join(grids)}    </Grid>\n'
+            for name, grids in self.series.items())
+        text = ('<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
+                f'<Xdmf Version="3.0" xmlns:xi="{XINCLUDE}">\n  <Domain>\n{self.mesh_grid}{collections}'
+                '  </Domain>\n</Xdmf>\n')
+        write_text_atomic(self.index, text, sync=True)
+
+
+def _step_grid(grid: ET.Element) -> str:
+    """The XML of one step grid of a field's collection: the mesh included, its Time and Attribute(s)."""
+    time = grid.find("Time")
+    attributes = "".join("        " + ET.tostring(a, encoding="unicode").strip() + "\n"
+                         for a in grid.findall("Attribute"))
+    return (f'      <Grid Name="{grid.get("Name", "")}" GridType="Uniform">\n'
+            f'        <xi:include xpointer="{MESH_POINTER}" />\n'
+            f'        <Time Value="{time.get("Value") if time is not None else "0"}" />\n{attributes}      </Grid>\n')
+
+
+def _read_index(path: Path, steps: int) -> tuple[str, dict[str, list[str]]]:
+    """The mesh grid (XML) of an XDMF file and, per field collection, the XML of its first ``steps`` grids."""
+    root = ET.parse(path).getroot()
+    domain = root.find("Domain")
+    if domain is None:
+        raise ValueError(f"{path}: no Domain")
+    mesh_grid, series = "", {}
+    for grid in domain.findall("Grid"):
+        if grid.get("GridType") == "Collection":
+            grids = grid.findall("Grid")
+            if len(grids) < steps:
+                raise ValueError(f"{path}: {grid.get('Name')} has {len(grids)} steps, fewer than {steps}")
+            series[grid.get("Name", "")] = [_step_grid(g) for g in grids[:steps]]
+        elif not mesh_grid:
+            mesh_grid = "    " + ET.tostring(grid, encoding="unicode").strip() + "\n"
+    if not mesh_grid:
+        raise ValueError(f"{path}: no mesh grid")
+    return mesh_grid, series
 
 
 class CellAverages:
@@ -172,10 +313,11 @@ class ResultWriter:
     """
 
     def __init__(self, problem: ElasticityProblem, directory: Path, xdmf: bool = True, vtu: bool = True,
-                 png: bool = True, stress_unit: str = "", length_unit: str = "") -> None:
+                 png: bool = True, stress_unit: str = "", length_unit: str = "", resume: int = 0,
+                 files: list[str] | None = None) -> None:
         self.problem = problem
         self.stress_unit, self.length_unit = stress_unit, length_unit
-        self.files: list[str] = []
+        self.files: list[str] = list(files or [])
         self.comm = problem.domain.mesh.comm
         self.directory = Path(directory)
         if self.comm.rank == 0:
@@ -186,12 +328,11 @@ class ResultWriter:
         self.u_out = fem.Function(compat.function_space(msh, "Lagrange", compat.geometry_degree(msh), (3,)), name="u")
         self.averages = CellAverages(problem)
         self.want_vtu, self.want_png = vtu, png
-        self.xdmf = None
+        self.xdmf: XdmfSeries | None = None
         if xdmf:
-            self.xdmf = XDMFFile(self.comm, str(self.directory / "results.xdmf"), "w")
-            self.xdmf.write_mesh(msh)
+            self.xdmf = XdmfSeries(msh, self.directory, "results", resume=resume)
             self._add("results.xdmf", "results.h5")
-        self.count = 0
+        self.count = resume
         self.last_gathered: dict[str, np.ndarray] | None = None
 
     def write_step(self, time: float) -> None:
@@ -202,9 +343,7 @@ class ResultWriter:
         self.u_out.interpolate(self.problem.displacement())
         fields = {**self.averages.update(), **self.problem.cell_fields}
         if self.xdmf is not None:
-            self.xdmf.write_function(self.u_out, time)
-            for f in fields.values():
-                self.xdmf.write_function(f, time)
+            self._add(self.xdmf.write([self.u_out, *fields.values()], time))
         self.count += 1
         if self.want_vtu or self.want_png:
             self.last_gathered = self.gather(fields)
@@ -276,9 +415,8 @@ class ResultWriter:
         return path if path.name in written else None
 
     def close(self) -> None:
-        if self.xdmf is not None:
-            self.xdmf.close()
-            self.xdmf = None
+        """Nothing stays open between steps (XdmfSeries); kept for the callers."""
+        self.xdmf = None
 
 
 def write_vtu(path: Path, data: dict[str, np.ndarray]) -> None:

@@ -433,12 +433,13 @@ class TimeStepRecord:
     dt: float
     load_factor: float
     result: SolveResult
+    next_increment: float = 0.0  # the step size after this one when it converged (checkpoints)
 
 
 def step_time(solver: _Solver, dynamics: Dynamics, end_time: float, dt: float,
               on_step: Callable[[TimeStepRecord], None] | None = None,
               time_to_load: Callable[[float], float] = lambda t: t,
-              max_cutbacks: int = 8, growth: float = 1.5) -> Outcome:
+              max_cutbacks: int = 8, growth: float = 1.5, increment: float | None = None) -> Outcome:
     """Integrate from dynamics.time to ``end_time`` in steps of ``dt``; True when it got there.
 
     Each step: dt_k = min(h, end_time - t), problem.set_load_factor(time_to_load(t + dt_k))
@@ -448,6 +449,7 @@ def step_time(solver: _Solver, dynamics: Dynamics, end_time: float, dt: float,
     the state and the load factor are restored and h is halved; the run gives up after
     ``max_cutbacks`` failures in a row or when h falls below dt / 2^max_cutbacks (as
     model.solvers.loadstepping). ``solver`` is a NewtonSolver of dynamics.problem (created after dynamics).
+    ``increment``: the first step size (a restart's saved cut-back state; default ``dt``).
     """
     if not (end_time > 0.0 and dt > 0.0):
         raise ValueError(f"end_time and dt must be > 0, got {end_time}, {dt}")
@@ -456,7 +458,7 @@ def step_time(solver: _Solver, dynamics: Dynamics, end_time: float, dt: float,
     problem = dynamics.problem
     rank0 = dynamics.comm.rank == 0
     nominal = dt
-    increment = nominal
+    increment = nominal if increment is None else float(increment)
     cutbacks = 0
     while dynamics.time < end_time - 1e-12 * max(end_time, 1.0):
         current = dynamics.time
@@ -469,7 +471,7 @@ def step_time(solver: _Solver, dynamics: Dynamics, end_time: float, dt: float,
         problem.set_load_factor(load if dynamics.alpha_f == 0.0 else float(time_to_load(dynamics.load_time(target))))
         dynamics.restore()  # Newton starts from u_n
         result = solver.solve()
-        record = TimeStepRecord(target, step, load, result)
+        record = TimeStepRecord(target, step, load, result, min(increment * growth, nominal))
         if result.converged:
             dynamics.advance()
             dynamics.time = target  # no round-off drift

@@ -66,18 +66,20 @@ class StepRecord:
     load_factor: float
     result: SolveResult
     seconds: float = 0.0  # wall time of the solve
+    next_increment: float = 0.0  # the increment the next step takes when this one converged (checkpoints)
 
 
 def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: int, max_cutbacks: int = 8,
                  growth: float = 1.5, on_step: Callable[[StepRecord], None] | None = None, start: float = 0.0,
-                 what: str = "load step", step_key: str = "loading.steps") -> Outcome:
+                 what: str = "load step", step_key: str = "loading.steps", increment: float | None = None) -> Outcome:
     """Drive a parameter s from ``start`` to 1 in increments of 1/steps, ``apply(s)`` setting it on the problem
     before each solve; a failed solve restores the last converged state and halves the increment that failed,
     a converged one grows the increment by ``growth`` (up to 1/steps). A true Outcome when s got to 1, else
-    one whose ``reason`` says why it gave up (give_up_reason)."""
+    one whose ``reason`` says why it gave up (give_up_reason). ``increment``: the first step's (a restart
+    continues with the cut-back state it saved; default 1/steps)."""
     problem = solver.problem
     nominal = 1.0 / steps
-    increment = nominal
+    increment = nominal if increment is None else float(increment)
     current = start
     cutbacks = 0
     while current < 1.0 - 1e-12:
@@ -88,7 +90,7 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
         apply(target)
         began = time.perf_counter()
         result = solver.solve()
-        record = StepRecord(target, result, time.perf_counter() - began)
+        record = StepRecord(target, result, time.perf_counter() - began, min(increment * growth, nominal))
         if on_step is not None:
             on_step(record)
         if result.converged:
@@ -115,10 +117,10 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
 
 
 def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: float = 1.5,
-               on_step: Callable[[StepRecord], None] | None = None) -> Outcome:
+               on_step: Callable[[StepRecord], None] | None = None, increment: float | None = None) -> Outcome:
     """Drive the load factor of solver.problem from its current value to 1 (continuation with
-    apply = problem.set_load_factor); a true Outcome when it got there, else one whose ``reason`` says why
-    it gave up."""
+    apply = problem.set_load_factor, first increment ``increment``); a true Outcome when it got there, else one
+    whose ``reason`` says why it gave up."""
     problem = solver.problem
     return continuation(solver, problem.set_load_factor, steps, max_cutbacks, growth, on_step,
-                        start=float(problem.time))
+                        start=float(problem.time), increment=increment)
