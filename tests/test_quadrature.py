@@ -37,6 +37,8 @@ PARAMETERS: dict[str, dict[str, Any]] = {
     "fixed_corotated": {"E": E, "nu": NU}, "arap": {"mu": MU},
     "stable_neo_hookean": {"E": E, "nu": NU, "variant": "paper"},
     "yeoh": {"c1": MU / 2, "c2": -MU / 20, "c3": MU / 50, "kappa": BULK},
+    "ogden": {"c1": MU, "m1": 4.0, "c2": MU / 5, "m2": -2.0, "kappa": BULK},
+    "holzapfel_ogden": {}, "trans_iso_mooney_rivlin": {}, "blemker": {},  # their defaults
 }
 
 
@@ -50,7 +52,7 @@ def deformed(x: np.ndarray) -> np.ndarray:
 
 
 def fields(domain: Any, name: str) -> dict[str, fem.Function]:
-    """Per-cell a0 (tilted differently in each cell), alpha and S, as the pipeline's DG0 fields."""
+    """Per-cell a0 (tilted differently in each cell), s0, alpha and S, as the pipeline's DG0 fields."""
     msh = domain.mesh
     n = msh.topology.index_map(3).size_local + msh.topology.index_map(3).num_ghosts
     mid = msh.geometry.x[compat.geometry_dofs(msh)[:n]].mean(axis=1)
@@ -59,6 +61,10 @@ def fields(domain: Any, name: str) -> dict[str, fem.Function]:
         a0 = np.stack([np.ones(n), 0.4 * np.sin(3 * mid[:, 1]), 0.3 * np.cos(2 * mid[:, 2])], axis=1)
         out["a0"] = fem.Function(compat.function_space(msh, "DG", 0, (3,)))
         out["a0"].x.array[: 3 * n] = (a0 / np.linalg.norm(a0, axis=1)[:, None]).reshape(-1)
+        if "s0" in forms.REGISTRY[name].fields:  # a sheet direction orthogonal to a0
+            s0 = np.cross(a0, [0.0, 0.0, 1.0])
+            out["s0"] = fem.Function(compat.function_space(msh, "DG", 0, (3,)))
+            out["s0"].x.array[: 3 * n] = (s0 / np.linalg.norm(s0, axis=1)[:, None]).reshape(-1)
     if "alpha" in forms.REGISTRY[name].fields:
         out["alpha"] = fem.Function(compat.function_space(msh, "DG", 0))
         out["alpha"].x.array[:n] = 0.5 + 0.5 * np.sin(5 * mid[:, 0])
