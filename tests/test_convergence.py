@@ -17,7 +17,8 @@ from conftest import ROOT, environment, example, serial_only, write_toml
 from mpi4py import MPI
 from scipy.optimize import brentq
 
-from model.studies.convergence import ConvergenceStudy, QoI, converge, gci, parse_refine, split_values
+from model.config.overrides import split_values
+from model.studies.convergence import ConvergenceStudy, QoI, converge, gci, parse_refine
 
 # Celik, Ghia, Roache, Freitas, Coleman, Raad (2008), "Procedure for Estimation and Reporting of Uncertainty Due
 # to Discretization in CFD Applications", J. Fluids Eng. 130, 078001, Table 1 ("Sample calculations of

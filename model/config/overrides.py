@@ -54,6 +54,29 @@ def split_path(path: str) -> list[str | int]:
     return parts
 
 
+def split_values(text: str) -> list[str]:
+    """"1e4,2e4" -> ["1e4", "2e4"]; commas inside brackets, braces or quotes belong to the value:
+    "[0.1,0],[0.2,0]" -> ["[0.1,0]", "[0.2,0]"]."""
+    parts, depth, quote, current = [], 0, "", []
+    for ch in text:
+        if quote:
+            if ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append("".join(current).strip())
+            current = []
+            continue
+        current.append(ch)
+    parts.append("".join(current).strip())
+    return parts
+
+
 def parse_value(text: str, key: str | None = None) -> Any:
     """A command-line value as TOML (numbers, booleans, strings in quotes, arrays, inline tables); a bare
     word that is not TOML (no spaces, quotes, brackets, commas) is a string. ``key`` names the error."""
@@ -215,4 +238,4 @@ def resolved(raw: Mapping[str, Any], base: Path) -> dict[str, Any]:
     return walk(raw)
 
 
-__all__ = ["apply", "parse_assignment", "parse_assignments", "parse_value", "resolved", "split_path"]
+__all__ = ["apply", "parse_assignment", "parse_assignments", "parse_value", "resolved", "split_path", "split_values"]

@@ -374,30 +374,9 @@ def _markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> lis
     return out + ["| " + " | ".join(str(c).replace("|", "\\|") for c in row) + " |" for row in rows]
 
 
-def split_values(text: str) -> list[str]:
-    """"4,8,16" -> ["4", "8", "16"]; commas inside brackets or quotes do not split ("[4,4,1],[8,8,1]")."""
-    parts, depth, quote, current = [], 0, "", ""
-    for ch in text:
-        if quote:
-            quote = "" if ch == quote else quote
-        elif ch in "\"'":
-            quote = ch
-        elif ch in "[{":
-            depth += 1
-        elif ch in "]}":
-            depth -= 1
-        elif ch == "," and depth == 0:
-            parts.append(current.strip())
-            current = ""
-            continue
-        current += ch
-    parts.append(current.strip())
-    return parts
-
-
 def parse_refine(text: str) -> tuple[str, list[Any]]:
     """"KEY=v1,v2,v3" (values as TOML) -> (KEY, [v1, v2, v3]); ConfigError naming it when malformed."""
-    from model.config.overrides import parse_value
+    from model.config.overrides import parse_value, split_values
 
     key, sep, values = text.partition("=")
     if not sep or not key.strip() or not re.search(r"\S", values):

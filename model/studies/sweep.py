@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from model.config import parse, read
-from model.config.overrides import apply, parse_value
+from model.config.overrides import apply, parse_value, split_values
 from model.errors import ConfigError
 from model.studies import runs
 
@@ -49,29 +49,6 @@ COMPONENTS = ("x", "y", "z")
 #: step entries that are not numbers of the table (or are spread into columns of their own)
 _SKIP = {"converged", "snes_reason", "snes_reason_name", "probes", "reactions", "volumes", "activation",
          "contact", "sliding", "largest_residual"}
-
-
-def split_values(text: str) -> list[str]:
-    """"1e4,2e4" -> ["1e4", "2e4"]; commas inside brackets, braces or quotes belong to the value:
-    "[0.1,0],[0.2,0]" -> ["[0.1,0]", "[0.2,0]"]."""
-    parts, depth, quote, current = [], 0, "", []
-    for ch in text:
-        if quote:
-            if ch == quote:
-                quote = ""
-        elif ch in "\"'":
-            quote = ch
-        elif ch in "[{":
-            depth += 1
-        elif ch in "]}":
-            depth -= 1
-        elif ch == "," and depth == 0:
-            parts.append("".join(current).strip())
-            current = []
-            continue
-        current.append(ch)
-    parts.append("".join(current).strip())
-    return parts
 
 
 def parse_set(item: str) -> tuple[str, list[Any]]:
