@@ -78,6 +78,11 @@ def test_same_results(name: str) -> None:
             assert error < 1e-8, f"{name}: {key} {item} differs by {error:.2e} (relative)"
 
 
+#: laws whose reference goes through LAPACK, whose rounding differs between the legs' numpy (1.x vs 2.x):
+#: ogden's per-point eigenbasis (eigh; measured 3.4e-11 in P), stable_neo_hookean's paper variant (1.4e-12)
+VERIFY_RTOL = {"ogden": 1e-10, "stable_neo_hookean": 1e-11}
+
+
 @pytest.mark.parametrize("law", sorted(VERIFY_PARAMS))
 def test_same_verify_references(law: str) -> None:
     a, b = (np.load(DATA / leg / "verify" / f"{law}.npz") for leg in LEGS)
@@ -90,4 +95,4 @@ def test_same_verify_references(law: str) -> None:
         scale = np.maximum(np.linalg.norm(x, axis=1), 1e-6 * np.linalg.norm(x, axis=1).max())
         error = float((np.linalg.norm(x - y, axis=1) / scale).max())
         print(f"{law} {quantity}: max relative difference {error:.2e}")
-        assert error < 1e-12, f"{law}: {quantity} differs by {error:.2e} (relative)"
+        assert error < VERIFY_RTOL.get(law, 1e-12), f"{law}: {quantity} differs by {error:.2e} (relative)"
