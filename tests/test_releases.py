@@ -5,7 +5,8 @@ RELEASE_DATA set to the folder holding both legs' outputs (``debian12/`` and ``d
 Probes, reactions, energies (strain, active, penalty, total potential), volumes and contact forces of
 every converged step agree to 1e-8
 relative (to the largest magnitude of the quantity, e.g. of any reaction, over the run), the verify references psi, P, A
-of every law to 1e-12 relative. Without both outputs the tests are skipped, saying why.
+of every law to 1e-12 relative (ogden 1e-10, stable_neo_hookean 1e-11: VERIFY_RTOL). Without both outputs
+the tests are skipped, saying why.
 """
 
 from __future__ import annotations
