@@ -50,3 +50,27 @@ def test_constant_and_per_cell_fibres() -> None:
     np.testing.assert_allclose(owned_values(per_cell), unit_vectors(mid + 1.0), atol=1e-12)
     with pytest.raises(ValueError, match="zero"):
         FibreField(domain).constant([0, 0, 0], [0, 0, 0])
+
+
+@pytest.fixture(scope="module")
+def arm_domain():
+    return domain_of(meshes.arm_segment(size=0.008))
+
+
+@pytest.mark.parametrize("regions", [("belly_a", "tendon_a"), ("belly_b", "tendon_b"), ("fat",)])
+def test_region_dofs_include_the_nodes_a_region_touches_on_other_ranks(arm_domain, regions: tuple[str, ...]) -> None:
+    """A node on the border between ranks may touch cells of the region on the other rank only; it is still
+    a node of the region (else the Laplace solve pins it to 0 and bends the fibres around it: on 2 ranks the
+    two-muscle arm segment's muscle a thickened half as much in some partitions). Reference: the global
+    numbers of every rank's region-cell nodes, gathered."""
+    from model.fields.fibres import region_dofs
+
+    domain = arm_domain
+    V = compat.function_space(domain.mesh, "Lagrange", 1)
+    imap = V.dofmap.index_map
+    cells = np.concatenate([domain.region_cells(n) for n in regions])
+    mine = imap.local_to_global(np.unique(compat.cell_dofs(V.dofmap)[cells]).astype(np.int32))
+    touched = np.unique(np.concatenate(MPI.COMM_WORLD.allgather(mine)))
+    local = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+    expected = local[np.isin(imap.local_to_global(local), touched)]
+    np.testing.assert_array_equal(region_dofs(V, domain, regions), expected)

@@ -83,6 +83,22 @@ class FibreField:
         return self.set_values(values)
 
 
+def region_dofs(V: fem.FunctionSpace, domain: Domain, names: Sequence[str]) -> np.ndarray:
+    """The local dofs (owned and ghost) of the scalar space V that a cell of the regions ``names`` touches on
+    any rank. Collective.
+
+    A rank sees only its own cells: a node on the border between ranks may touch region cells of the other
+    rank only, so the local test is completed by a sum over the ranks (reverse scatter, then forward).
+    """
+    cells = np.concatenate([domain.region_cells(n) for n in names])
+    marker = fem.Function(V)
+    marker.x.array[np.unique(compat.cell_dofs(V.dofmap)[cells])] = 1.0
+    vector = compat.petsc_vector(marker)
+    vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    return np.flatnonzero(marker.x.array > 0.0).astype(np.int32)
+
+
 def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Sequence[str] = "all") -> fem.Function:
     """phi in P1: -div grad phi = 0 on the region's cells, phi = 0 / 1 on the named surfaces, zero flux
     elsewhere; dofs outside the region(s) are held at 0 (they are not coupled to it).
@@ -110,8 +126,7 @@ def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Seq
     num_local = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
     inside = np.arange(num_local, dtype=np.int32)
     if names != ["all"]:
-        cells = np.concatenate([domain.region_cells(n) for n in names])
-        inside = np.unique(compat.cell_dofs(V.dofmap)[cells])
+        inside = region_dofs(V, domain, names)
         outside = np.setdiff1d(np.arange(num_local, dtype=np.int32), inside)
         bcs.append(fem.dirichletbc(zero, outside))
     owned = V.dofmap.index_map.size_local
@@ -140,4 +155,4 @@ def solve_laplace(domain: Domain, origin: str, insertion: str, region: str | Seq
     return solution
 
 
-__all__ = ["FibreField", "solve_laplace", "unit_vectors"]
+__all__ = ["FibreField", "region_dofs", "solve_laplace", "unit_vectors"]
