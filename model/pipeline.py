@@ -270,8 +270,9 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
                 if b.value:
                     problem.add_dirichlet(b.on, b.components, b.value, points=b.points)
                 else:
-                    problem.add_dirichlet(b.on, b.components, [compile_expression(e) for e in b.expression],
-                                          [uses_load_factor(e) for e in b.expression], points=b.points)
+                    values = [compile_expression(e, config.parameters) for e in b.expression]
+                    problem.add_dirichlet(b.on, b.components, values, [uses_load_factor(e) for e in b.expression],
+                                          points=b.points)
             except ValueError as err:  # a point that is not a node of the boundary
                 j = int(str(err).split()[1]) if str(err).startswith("point ") else 0
                 raise ConfigError(f"boundary[{i}].points[{j}]: {err}") from None

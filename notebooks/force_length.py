@@ -33,7 +33,11 @@
 #
 # Both experiments hold the body at a length, then activate it at that length
 # (`model.experiments.muscle`): the load factor $t$ goes 0 → 0.5 stretching the body passively
-# to $l$ times its length, 0.5 → 1 ramping $\alpha$ from 0 to 1. The *active force* is the end
+# to $l$ times its length, 0.5 → 1 ramping $\alpha$ from 0 to 1. The stretch $l$ is the
+# configuration's `parameters.stretch` (the end displacement is the expression
+# `(stretch - 1)*length*minimum(2*t, 1)`), so each curve is one parameter sweep
+# (`model.studies.sweep`, the same as `python -m model sweep CONFIG --set parameters.stretch=...`):
+# one run per stretch in its own folder, and one table with a row per run and converged step. The *active force* is the end
 # reaction at $t = 1$ minus the one at $t = 0.5$, the *passive force* the reaction at $t = 0.5$.
 #
 # **(a) Tissue:** a uniform cylinder of muscle (`examples/force_length_cylinder.toml`, radius
@@ -70,39 +74,62 @@ try:
 except ImportError:  # plots are optional
     plt = None
 
+import json  # noqa: E402
+
 import meshio  # noqa: E402
+import pandas as pd  # noqa: E402
 from _pictures import deformation_gradients, render  # noqa: E402
 
 import model.config  # noqa: E402
-from model.experiments.muscle import active_stress, f_active, forces, with_stretch  # noqa: E402
+from model.experiments.muscle import active_stress, f_active  # noqa: E402
+from model.studies import sweep  # noqa: E402
 
 OUT.mkdir(parents=True, exist_ok=True)
 
 # %% [markdown]
 # ## (a) The tissue curve: a uniform cylinder
 #
-# One run per stretch (`with_stretch(raw, l, "top", 0.04)` replaces the prescribed top
-# displacement); each takes about a second.
+# One run per stretch, two at a time (`jobs=2`); each takes about a second plus the start of its
+# process. Sweeping again into the same folder skips the runs already completed. From the table:
+# the passive force is the top reaction at $t$ = 0.5, the active force the one at $t$ = 1 minus it.
 
 # %%
 EXAMPLES = ROOT / "examples"
-cylinder_raw = model.config.read(EXAMPLES / "force_length_cylinder.toml")
-cylinder_raw["output"].update(png=False, xdmf=False, vtu=True)
-law = model.load_config(cylinder_raw, base=EXAMPLES).materials[0].law
+cylinder_file = EXAMPLES / "force_length_cylinder.toml"
+law = model.load_config(cylinder_file).materials[0].law
 FULL_SWEEP = [0.45, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.45, 1.5, 1.55]
 stretches = [0.5, 0.8, 1.0, 1.2, 1.55] if CI else FULL_SWEEP
+cylinder_table = sweep(cylinder_file, {"parameters.stretch": stretches, "output.vtu": [True]}, jobs=2,
+                       out=OUT / "cylinder")
+
+
+def force_length_table(table: pd.DataFrame, boundary: str, folder: Path) -> pd.DataFrame:
+    """Per stretch: passive (t = 0.5) and active (t = 1 minus t = 0.5) reaction z on ``boundary``, the run's
+    folder, its last step's number and its wall time, from a sweep's table."""
+    done = table[table["status"] == "completed"]
+    failed = sorted(set(table["parameters.stretch"]) - set(done["parameters.stretch"]))
+    assert not failed, f"runs failed at stretches {failed}"
+    column = f"reaction.{boundary}.z"
+    held = done[np.isclose(done["load_factor"], 0.5)].set_index("parameters.stretch")
+    full = done[np.isclose(done["load_factor"], 1.0)].set_index("parameters.stretch")
+    return pd.DataFrame({"passive": held[column], "active": full[column] - held[column],
+                         "folder": [folder / "runs" / r for r in full["run"]], "last_step": full["step"],
+                         "wall": full["wall_time_s"]})
+
+
+cylinder_forces = force_length_table(cylinder_table, "top", OUT / "cylinder")
 cylinder = {}
-for stretch in stretches:
-    config = model.load_config(with_stretch(cylinder_raw, stretch, "top", 0.04), base=EXAMPLES)
-    summary = model.run(config, out=OUT / f"cylinder_{stretch}").summary
-    passive, total, active = forces(summary, "top")
+for stretch, row in cylinder_forces.iterrows():
+    summary = json.loads((row["folder"] / "summary.json").read_text())
     area = summary["boundary_areas"]["top"]  # reference cross-section
-    n_steps = len([s for s in summary["steps"] if s["converged"]])
-    J_fe = meshio.read(OUT / f"cylinder_{stretch}" / f"step_{n_steps:04d}.vtu").cell_data["J"][0].mean()
-    cylinder[stretch] = {"passive": passive / area, "active": active / area, "J": J_fe,
-                         "wall": summary["wall_time_s"]}
-print(f"{len(stretches)} cylinder runs, {summary['cells']} cells each, "
-      f"{sum(c['wall'] for c in cylinder.values()):.1f} s in all")
+    J_fe = meshio.read(row["folder"] / f"step_{row['last_step']:04d}.vtu").cell_data["J"][0].mean()
+    cylinder[stretch] = {"passive": row["passive"] / area, "active": row["active"] / area, "J": J_fe,
+                         "wall": row["wall"]}
+print(f"{len(stretches)} cylinder runs ({cylinder_table.attrs['ran']} run now, {cylinder_table.attrs['skipped']} "
+      f"from an earlier sweep), {summary['cells']} cells each, {sum(c['wall'] for c in cylinder.values()):.1f} s "
+      "of solving in all")
+print(cylinder_table[["parameters.stretch", "step", "load_factor", "reaction.top.z", "newton_iterations"]]
+      .head(6).to_string(index=False))
 
 # %% [markdown]
 # The printed comparison: the active force per reference cross-section against
@@ -207,18 +234,16 @@ if plt is not None:
 # %% [markdown]
 # ## (b) A whole fusiform muscle
 #
-# The insertion disk moves by $(l - 1) \times 0.14$ m, the origin disk is clamped. Three extra
-# probes on the axis, at the two tendon-belly junctions and at mid-belly, tell how the stretch is
-# shared between the tendons and the belly. The whole-muscle active force is normalised by
+# The insertion disk moves by $(l - 1) \times 0.14$ m, the origin disk is clamped. Two probes of
+# the example on the axis, at the two tendon-belly junctions, tell how the stretch is shared between
+# the tendons and the belly (their columns of the sweep's table). The whole-muscle active force is normalised by
 # $\sigma_{max}$ times the belly's largest cross-section $\pi\, (15\,\mathrm{mm})^2$, the force the
 # muscle would deliver if every fibre of its thickest section pulled with $\sigma_{max}$.
 # Each run takes about half a minute.
 
 # %%
-fusiform_raw = model.config.read(EXAMPLES / "force_length_fusiform.toml")
-fusiform_raw["output"].update(png=False, xdmf=False, vtu=True)
-fusiform_raw["probe"] += [{"name": "origin_junction", "point": [0.0, 0.0, 0.02]},
-                          {"name": "insertion_junction", "point": [0.0, 0.0, 0.12]}]
+fusiform_file = EXAMPLES / "force_length_fusiform.toml"
+sigma_max = model.load_config(fusiform_file).materials[0].law.sigma_max
 LENGTH, TENDON, BELLY = 0.14, 0.02, 0.10
 belly_area = math.pi * 0.015**2
 muscle_stretches = [1.0, 1.1] if CI else [0.9, 0.95, 1.0, 1.05, 1.1, 1.15]
@@ -244,26 +269,25 @@ def fibre_stretch_profile(vtu: Path, edges: np.ndarray) -> tuple[np.ndarray, np.
 
 
 edges = np.linspace(0.0, LENGTH, 15)
+fusiform_table = sweep(fusiform_file, {"parameters.stretch": muscle_stretches, "output.vtu": [True]}, jobs=2,
+                       out=OUT / "fusiform")
+fusiform_forces = force_length_table(fusiform_table, "insertion", OUT / "fusiform")
 whole = {}
-for stretch in muscle_stretches:
-    directory = OUT / f"fusiform_{stretch}"
-    config = model.load_config(with_stretch(fusiform_raw, stretch, "insertion", LENGTH), base=EXAMPLES)
-    summary = model.run(config, out=directory).summary
-    steps = [s for s in summary["steps"] if s["converged"]]
-    passive, total, active = forces(summary, "insertion")
-    row = {"passive": passive, "active": active, "normalised": active / (fusiform_raw["material"][0]["sigma_max"]
-                                                                          * belly_area),
-           "wall": summary["wall_time_s"]}
+for stretch, forces_row in fusiform_forces.iterrows():
+    steps = fusiform_table[(fusiform_table["parameters.stretch"] == stretch)
+                           & (fusiform_table["status"] == "completed")]
+    row = {"passive": forces_row["passive"], "active": forces_row["active"],
+           "normalised": forces_row["active"] / (sigma_max * belly_area), "wall": forces_row["wall"]}
     for label, t in (("held", 0.5), ("active", 1.0)):
-        n = next(i for i, s in enumerate(steps) if math.isclose(s["load_factor"], t, abs_tol=1e-9))
-        probes = steps[n]["probes"]
-        origin_j, insertion_j = probes["origin_junction"][2], probes["insertion_junction"][2]
+        step = steps[np.isclose(steps["load_factor"], t)].iloc[0]
+        origin_j, insertion_j = step["probe.origin_junction.z"], step["probe.insertion_junction.z"]
         row[f"belly_{label}"] = 1.0 + (insertion_j - origin_j) / BELLY
         row[f"tendons_{label}"] = 1.0 + (origin_j + (stretch - 1.0) * LENGTH - insertion_j) / (2 * TENDON)
-        row[f"vtu_{label}"] = directory / f"step_{n + 1:04d}.vtu"
+        row[f"vtu_{label}"] = forces_row["folder"] / f"step_{int(step['step']):04d}.vtu"
         row[f"z_{label}"], row[f"profile_{label}"], row[f"range_{label}"] = fibre_stretch_profile(
             row[f"vtu_{label}"], edges)
     whole[stretch] = row
+summary = json.loads((fusiform_forces["folder"].iloc[0] / "summary.json").read_text())
 print(f"{len(muscle_stretches)} fusiform runs, {summary['cells']} cells, {summary['dofs']} dofs each, "
       f"{sum(r['wall'] for r in whole.values()):.1f} s in all")
 

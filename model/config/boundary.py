@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import Discriminator, Field, Tag, field_validator, model_validator
+from pydantic import Discriminator, Field, Tag, ValidationInfo, field_validator, model_validator
 
 from model.config.base import (
     By,
@@ -40,12 +40,12 @@ Components = Annotated[
 ]
 
 
-def _compiled(expressions: tuple[str, ...]) -> tuple[str, ...]:
+def _compiled(expressions: tuple[str, ...], parameters: dict[str, float]) -> tuple[str, ...]:
     from model.config.expressions import compile_expression
 
     for i, text in enumerate(expressions):
         try:
-            compile_expression(text)
+            compile_expression(text, parameters)
         except ValueError as err:
             fail(str(err), i)
     return expressions
@@ -108,8 +108,8 @@ class DisplacementBoundary(BoundaryConfig):
 
     @field_validator("expression", mode="after")
     @classmethod
-    def _check_expressions(cls, value: tuple[str, ...]) -> tuple[str, ...]:
-        return _compiled(value)
+    def _check_expressions(cls, value: tuple[str, ...], info: ValidationInfo) -> tuple[str, ...]:
+        return _compiled(value, (info.context or {}).get("parameters", {}))
 
     @model_validator(mode="after")
     def _one_per_component(self) -> DisplacementBoundary:

@@ -14,7 +14,7 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, Field, ValidationInfo, field_validator, model_validator
 
-from model.config.base import Section, fail, key, validate
+from model.config.base import Name, Number, Section, fail, key, validate
 from model.config.body_force import BodyForceConfig
 from model.config.bone import BoneConfig
 from model.config.boundary import Boundary
@@ -37,6 +37,22 @@ def _unique_names(tables: tuple[Any, ...]) -> tuple[Any, ...]:
         if name in names[:i]:
             fail(f"{name!r} is used twice", i, "name")
     return tables
+
+
+def _parameter_names(table: dict[str, float]) -> dict[str, float]:
+    from model.config.expressions import RESERVED
+
+    for name in table:
+        if not name.isidentifier():
+            fail(f"{name!r} is not a name an expression can use (letters, digits and _, not starting with a digit)",
+                 name)
+        if name in RESERVED:
+            fail(f"{name!r} is taken: expressions already use {', '.join(sorted(RESERVED))}", name)
+    return table
+
+
+#: the [parameters] table: names an expression can use, and their numbers
+Parameters = Annotated[dict[Name, Number], AfterValidator(_parameter_names)]
 
 
 def _bones_named(bones: dict[str, BoneConfig]) -> str:
@@ -64,6 +80,9 @@ class RunConfig(Section):
     contacts: tuple[Contact, ...] = key("contacts with rigid obstacles", default=(), alias="contact")
     dynamics: DynamicsSpec = key("time integration (default: quasi-static)", default_factory=DynamicsSpec)
     units: UnitsConfig = key("the system of units the numbers are in (labels only)", default_factory=UnitsConfig)
+    parameters: Parameters = key(
+        "named numbers the expressions may use, e.g. { stretch = 1.2 } and expression = [\"(stretch - 1)*0.04*t\"]: "
+        "a sweep or an override varies them (--set parameters.stretch=1.1)", default_factory=dict)
 
     @property
     def document(self) -> dict[str, Any] | None:
@@ -99,6 +118,7 @@ class RunConfig(Section):
     @model_validator(mode="after")
     def _across_sections(self) -> RunConfig:
         self._check_solver()
+        self._check_parameters_used()
         bones = {b.name: b for b in self.bones}
         for i, b in enumerate(self.boundaries):
             if b.bone is None:
@@ -118,6 +138,16 @@ class RunConfig(Section):
         if self.contacts and self.solver.method != "newton":
             fail("contact needs method = \"newton\"", "solver", "method")
         return self
+
+    def _check_parameters_used(self) -> None:
+        """A parameter no expression uses is most likely misspelt (a sweep over it would repeat one run)."""
+        from model.config.expressions import names_used
+
+        used = {n for b in self.boundaries for e in getattr(b, "expression", ()) for n in names_used(e)}
+        for name in self.parameters:
+            if name not in used:
+                fail(f"no expression uses it (they use: {', '.join(sorted(used & set(self.parameters))) or 'none'})",
+                     "parameters", name)
 
     def _check_solver(self) -> None:
         """What [solver] asks for must suit the formulation and the materials."""
@@ -156,7 +186,10 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
     """Check a parsed TOML document and build the RunConfig (file paths relative to ``base``)."""
     from model.config.overrides import resolved
 
-    config = validate(RunConfig, raw, context={"base": Path(base)})
+    # the parameters first: the expressions of every section are checked with their names
+    parameters = validate(Parameters, raw["parameters"], "parameters") if isinstance(raw, dict) and \
+        "parameters" in raw else {}
+    config = validate(RunConfig, raw, context={"base": Path(base), "parameters": parameters})
     config.__dict__["_document"] = resolved(raw, Path(base))  # not a field: equality and dumps ignore it
     return config
 

@@ -3,7 +3,7 @@
 Used by the tests, the notebooks and the benchmarks, so that all three read the same numbers:
 
 - force-length (examples/force_length_*.toml): the load factor 0 -> 0.5 stretches the body to
-  l times its length passively, 0.5 -> 1 activates it at that length; the active force is the
+  l = parameters.stretch times its length passively, 0.5 -> 1 activates it at that length; the active force is the
   reaction at t = 1 minus the reaction at t = 0.5 (same stretch);
 - isometric contraction (examples/isometric.toml): activation, mid-belly bulge, volume change of
   the belly and tendon force per step.
@@ -34,13 +34,13 @@ def active_stress(stretch: float, law: Muscle) -> float:
     return law.sigma_max / law.l_ofl * f_active(stretch / law.l_ofl)
 
 
-def with_stretch(raw: dict[str, Any], stretch: float, boundary: str, length: float) -> dict[str, Any]:
-    """A copy of a force-length configuration holding the body at ``stretch`` (u_z of ``boundary``)."""
+def with_stretch(raw: dict[str, Any], stretch: float) -> dict[str, Any]:
+    """A copy of a force-length configuration held at ``stretch``: its parameters.stretch set (the prescribed
+    end displacement of examples/force_length_*.toml is an expression of it)."""
+    if not isinstance(raw.get("parameters"), dict) or "stretch" not in raw["parameters"]:
+        raise ValueError("with_stretch: the configuration has no parameters.stretch")
     out = copy.deepcopy(raw)
-    moved = [b for b in out["boundary"] if b["on"] == boundary and "expression" in b]
-    if len(moved) != 1:
-        raise ValueError(f"with_stretch: expected one expression boundary on {boundary!r}, found {len(moved)}")
-    moved[0]["expression"] = [f"({stretch!r} - 1)*{length!r}*minimum(2*t, 1)"]
+    out["parameters"]["stretch"] = float(stretch)
     return out
 
 
