@@ -37,8 +37,9 @@
 # configuration's `parameters.stretch` (the end displacement is the expression
 # `(stretch - 1)*length*minimum(2*t, 1)`), so each curve is one parameter sweep
 # (`model.studies.sweep`, the same as `python -m model sweep CONFIG --set parameters.stretch=...`):
-# one run per stretch in its own folder, and one table with a row per run and converged step. The *active force* is the end
-# reaction at $t = 1$ minus the one at $t = 0.5$, the *passive force* the reaction at $t = 0.5$.
+# one run per stretch in its own folder, and one table with a row per run and converged step. The
+# *active force* is the end reaction at $t = 1$ minus the one at $t = 0.5$, the *passive force* the
+# reaction at $t = 0.5$.
 #
 # **(a) Tissue:** a uniform cylinder of muscle (`examples/force_length_cylinder.toml`, radius
 # 5 mm, length 4 cm, fibres along the axis, Mooney-Rivlin matrix $c_1$ = 500 Pa, $K$ = 1e8 Pa,
