@@ -26,6 +26,10 @@ Seeds (shared/seeds/):
   references written in UFL and evaluated or assembled by dolfinx (``thesis_reference``: ufl.diff/ufl.derivative,
   a manifold triangle mesh in 3D, the closed surface of a tetrahedron, one Newton step of the implicit system).
 
+- mixed-fem-skinning-sgi.txt, "Screened Poisson Equation" and "Mixed FEM": the printed KKT system and its
+  stationarity conditions, the PDE against the energy it minimises, the KKT system with the mass and weight
+  matrices against the standard finite elements (``sgi``: operators assembled by dolfinx on a triangle mesh).
+
 Modules: ``common`` (rows, checks, numerics), ``klar`` and ``thesis`` (one per seed document: transcriptions
 and rows), ``thesis_reference`` (the UFL/dolfinx references of the spring, membrane and time-step rows).
 
@@ -34,8 +38,8 @@ the paper describes, checked independently: optimality certificate and random co
 klar-eq1/eq3/eq4-6 ``-inverted`` rows (``--inverted`` samples: R* = U* V*^T as the text defines it
 is a reflection when det F < 0), thesis-eq4.3, -eq4.11, -eq4.12, -eqC.15, -eqC.16 (each with C.22),
 thesis-eq4.5-<law>, thesis-eq4.8, -eqB.19, -eq4.9, -eq4.10, -dUdF, thesis-eq4.13, -eq4.14, -eq4.15,
-thesis-sec3.3.3.1-F, -energy, -forces, -hessian, -pressure, thesis-eq4.4; ``-corrected`` variants for every
-disagreement.
+thesis-sec3.3.3.1-F, -energy, -forces, -hessian, -pressure, thesis-eq4.4, sgi-kkt, sgi-kkt-stationarity,
+sgi-poisson-equation, sgi-kkt-fem; ``-corrected`` variants for every disagreement.
 """
 
 from __future__ import annotations
@@ -72,6 +76,7 @@ from model.verify.seeds.klar import (
     klar_rotation,
     klar_svd,
 )
+from model.verify.seeds.sgi import SGI, _sgi_rows, printed_kkt, sgi_operators
 from model.verify.seeds.thesis import (
     LAMBDA_THESIS,
     MU_THESIS,
@@ -92,11 +97,11 @@ from model.verify.seeds.thesis import (
 )
 
 __all__ = ["ELEMENT_SAMPLES", "KLAR", "LAMBDA_THESIS", "MU_KLAR", "MU_THESIS", "RTOL", "SAMPLES", "SEED", "TET",
-           "THESIS", "SeedRow", "check_psd_projection", "fibre_stretch_np", "format_table", "irving_Bm",
+           "SGI", "THESIS", "SeedRow", "check_psd_projection", "fibre_stretch_np", "format_table", "irving_Bm",
            "klar_eq1_energy", "klar_eq2_corrected", "klar_eq2_energy", "klar_eq3_stress", "klar_eq4_tangent",
-           "klar_eq5_rotation_differential", "klar_rotation", "klar_svd", "muscle_fibre_derivatives", "run_seeds",
-           "seed_rows", "thesis_eq4_5_forces", "thesis_eq4_5_stiffness", "thesis_eq4_8_dlbar",
-           "thesis_eq4_10_corrected", "to_json", "_central_differences"]
+           "klar_eq5_rotation_differential", "klar_rotation", "klar_svd", "muscle_fibre_derivatives", "printed_kkt",
+           "run_seeds", "seed_rows", "sgi_operators", "thesis_eq4_5_forces", "thesis_eq4_5_stiffness",
+           "thesis_eq4_8_dlbar", "thesis_eq4_10_corrected", "to_json", "_central_differences"]
 
 
 def seed_rows(include_inverted: bool = True) -> list[SeedRow]:
@@ -113,6 +118,7 @@ def seed_rows(include_inverted: bool = True) -> list[SeedRow]:
     rows += _thesis_muscle_rows()
     rows += _element_rows()
     rows += _spring_rows() + _membrane_rows() + _euler_rows()
+    rows += _sgi_rows()
     return rows
 
 
