@@ -28,7 +28,6 @@
 # Run with plain Python; with `CI` set it tries fewer noise levels.
 
 # %%
-import os
 import sys
 from pathlib import Path
 
@@ -36,16 +35,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd().resolve().parent
 sys.path[:0] = [str(ROOT), str(ROOT / "notebooks")]
-CI = bool(os.environ.get("CI"))
-OUT = Path(os.environ.get("NOTEBOOK_OUT", ROOT / "results" / "notebooks")) / "activation_estimation"
-try:
-    import matplotlib
+from _setup import start  # noqa: E402
 
-    if "ipykernel" not in sys.modules:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-except ImportError:  # plots are optional
-    plt = None
+CI, OUT, plt = start("activation_estimation")
 
 import importlib.util  # noqa: E402
 
@@ -55,7 +47,6 @@ example = importlib.util.module_from_spec(_spec)
 sys.modules[_spec.name] = example
 _spec.loader.exec_module(example)
 
-OUT.mkdir(parents=True, exist_ok=True)
 
 # %%
 estimate = example.recover(0.0)

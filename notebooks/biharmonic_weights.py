@@ -28,7 +28,6 @@
 # Run with plain Python; with `CI` set it uses a coarser mesh.
 
 # %%
-import os
 import sys
 from pathlib import Path
 
@@ -36,17 +35,11 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd().resolve().parent
 sys.path[:0] = [str(ROOT), str(ROOT / "notebooks")]
-CI = bool(os.environ.get("CI"))
-OUT = Path(os.environ.get("NOTEBOOK_OUT", ROOT / "results" / "notebooks")) / "biharmonic_weights"
-try:
-    import matplotlib
+from _setup import start  # noqa: E402
 
-    if "ipykernel" not in sys.modules:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+CI, OUT, plt = start("biharmonic_weights")
+if plt is not None:
     import matplotlib.tri as mtri
-except ImportError:  # plots are optional
-    plt = None
 
 from dolfinx import mesh as dmesh  # noqa: E402
 from mpi4py import MPI  # noqa: E402
@@ -54,7 +47,6 @@ from mpi4py import MPI  # noqa: E402
 from model import compat  # noqa: E402
 from model.fields.biharmonic import biharmonic_weights, bounded_biharmonic_weights, handle_at_point  # noqa: E402
 
-OUT.mkdir(parents=True, exist_ok=True)
 n = 24 if CI else 48
 msh = dmesh.create_unit_square(MPI.COMM_WORLD, n, n)
 POINTS = [(0.1, 0.1), (0.9, 0.2), (0.5, 0.9), (0.2, 0.7), (0.6, 0.45)]

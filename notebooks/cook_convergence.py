@@ -34,7 +34,6 @@
 # Run with plain Python; with `CI` set it uses 4, 8 and 16 cells per edge (else 4 to 32).
 
 # %%
-import os
 import sys
 from pathlib import Path
 
@@ -42,20 +41,12 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd().resolve().parent
 sys.path[:0] = [str(ROOT), str(ROOT / "notebooks")]
-CI = bool(os.environ.get("CI"))
-OUT = Path(os.environ.get("NOTEBOOK_OUT", ROOT / "results" / "notebooks")) / "cook_convergence"
-try:
-    import matplotlib
+from _setup import start  # noqa: E402
 
-    if "ipykernel" not in sys.modules:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-except ImportError:  # plots are optional
-    plt = None
+CI, OUT, plt = start("cook_convergence")
 
 from model.studies import converge  # noqa: E402
 
-OUT.mkdir(parents=True, exist_ok=True)
 LITERATURE = 6.9083  # mm: the top-right corner's vertical displacement, converged
 cells = [4, 8, 16] if CI else [4, 8, 16, 32]
 

@@ -41,7 +41,6 @@
 #         --qoi probe:belly_surface:x --qoi reaction:insertion:z --out results/isometric_convergence
 
 # %%
-import os
 import sys
 from pathlib import Path
 
@@ -49,20 +48,12 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd().resolve().parent
 sys.path[:0] = [str(ROOT), str(ROOT / "notebooks")]
-CI = bool(os.environ.get("CI"))
-OUT = Path(os.environ.get("NOTEBOOK_OUT", ROOT / "results" / "notebooks")) / "isometric_convergence"
-try:
-    import matplotlib
+from _setup import start  # noqa: E402
 
-    if "ipykernel" not in sys.modules:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-except ImportError:  # plots are optional
-    plt = None
+CI, OUT, plt = start("isometric_convergence")
 
 from model.studies import converge  # noqa: E402
 
-OUT.mkdir(parents=True, exist_ok=True)
 QOIS = {"probe:belly_surface:x": "bulge (mm)", "reaction:insertion:z": "tendon force (N)"}
 SCALE = {"probe:belly_surface:x": 1e3, "reaction:insertion:z": 1.0}
 overrides: dict = {"output": {"xdmf": False, "vtu": False, "png": False}}

@@ -35,7 +35,6 @@
 # Run with plain Python; with `CI` set it uses fewer meshes.
 
 # %%
-import os
 import sys
 from pathlib import Path
 
@@ -43,16 +42,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd().resolve().parent
 sys.path[:0] = [str(ROOT), str(ROOT / "notebooks")]
-CI = bool(os.environ.get("CI"))
-OUT = Path(os.environ.get("NOTEBOOK_OUT", ROOT / "results" / "notebooks")) / "screened_poisson"
-try:
-    import matplotlib
+from _setup import start  # noqa: E402
 
-    if "ipykernel" not in sys.modules:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-except ImportError:  # plots are optional
-    plt = None
+CI, OUT, plt = start("screened_poisson")
 
 import ufl  # noqa: E402
 from dolfinx import fem  # noqa: E402
@@ -62,7 +54,6 @@ from mpi4py import MPI  # noqa: E402
 from model import compat  # noqa: E402
 from model.problem.screened_poisson import l2_h1_errors, solve_screened_poisson  # noqa: E402
 
-OUT.mkdir(parents=True, exist_ok=True)
 ALPHA = 2.0
 
 
