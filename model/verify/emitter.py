@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mpi4py import MPI
 
 from model.verify import files, layouts
 from model.verify.evaluator import ReferenceEvaluator
@@ -70,8 +71,26 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
             **{k: v[keep] for k, v in drawn.items()}, "labels": np.array(labels), "material": np.array(material),
             "params_json": np.array(json.dumps(evaluator.parameters(), sort_keys=True)),
             "emit_json": np.array(json.dumps(summary))}
-    data["path"] = np.array(str(files.write_arrays(Path(out), data)))
+    data["path"] = np.array(_write_once(Path(out), data))
     return data
+
+
+def _write_once(out: Path, data: dict[str, np.ndarray]) -> str:
+    """Rank 0 writes the file (every rank computed the same arrays); the path, or rank 0's error, reaches every
+    rank. Under mpirun every rank writing one file left a truncated .npz for a reader."""
+    comm = MPI.COMM_WORLD
+    if comm.rank == 0:
+        try:
+            path = str(files.write_arrays(out, data))
+        except Exception as err:
+            comm.bcast(("", f"{type(err).__name__}: {err}"), root=0)
+            raise
+        comm.bcast((path, None), root=0)
+        return path
+    path, error = comm.bcast(None, root=0)
+    if error is not None:
+        raise OSError(f"rank 0 could not write {out}: {error}")
+    return path
 
 
 def summary_text(data: dict[str, np.ndarray]) -> str:
