@@ -76,9 +76,12 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
 
 
 def _write_once(out: Path, data: dict[str, np.ndarray]) -> str:
-    """Rank 0 writes the file (every rank computed the same arrays); the path, or rank 0's error, reaches every
-    rank. Under mpirun every rank writing one file left a truncated .npz for a reader."""
+    """Write the file once per distinct path: when every rank names the same ``out`` (every rank computed the
+    same arrays), rank 0 writes it and the path, or rank 0's error, reaches every rank (under mpirun every rank
+    writing one file left a truncated .npz for a reader); ranks naming paths of their own write their own."""
     comm = MPI.COMM_WORLD
+    if len(set(comm.allgather(str(out)))) > 1:
+        return str(files.write_arrays(out, data))
     if comm.rank == 0:
         try:
             path = str(files.write_arrays(out, data))
