@@ -109,8 +109,9 @@ def biharmonic_weights(msh, handles: Sequence[Handle]) -> list[fem.Function]:
     ksp = PETSc.KSP().create(msh.comm)
     ksp.setOperators(A)
     ksp.setType("preonly")
-    ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType("mumps")
+    pc = ksp.getPC()
+    pc.setType("lu")
+    pc.setFactorSolverType("mumps")
     weights = []
     solution = fem.Function(W)
     for j in range(len(handles)):
@@ -123,7 +124,9 @@ def biharmonic_weights(msh, handles: Sequence[Handle]) -> list[fem.Function]:
         x = b.duplicate()
         ksp.solve(b, x)
         if ksp.getConvergedReason() < 0:
-            raise RuntimeError(f"biharmonic weights: the LU solve failed for handle {j}")
+            info = pc.getFactorMatrix().getMumpsInfog(1)
+            raise RuntimeError(f"biharmonic weights: the LU solve failed for handle {j} (KSP reason "
+                               f"{ksp.getConvergedReason()}, MUMPS INFOG(1) = {info})")
         with x.localForm() as local:
             solution.x.array[:] = local.array_r[: len(solution.x.array)]
         solution.x.scatter_forward()
