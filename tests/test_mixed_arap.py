@@ -133,3 +133,24 @@ def test_bad_input_is_refused() -> None:
         ArapProblem(msh)
     with pytest.raises(ValueError, match="mu"):
         ArapProblem(msh, mu=0.0, handles=handles)
+
+
+def test_gingerbread_pose_mixed_equals_displacement_only() -> None:
+    """examples/mixed_arap.py: the gingerbread man (gmsh), feet pinned, right hand swung up by 60 degrees about
+    the shoulder, head pushed sideways: mixed and displacement-only ARAP reach the same pose (1e-8), the hand
+    where its handle puts it (within the penalty's compliance)."""
+    from test_demos import example_module
+
+    example = example_module("mixed_arap")
+    domain, results = example.pose_gingerbread(size=0.08, steps=2)
+    disp, mixed = results["displacement"], results["mixed"]
+    assert max_difference(mixed.u, disp.u) < 1e-8
+    assert abs(mixed.energy - disp.energy) < 1e-9 * disp.energy
+    hand = domain.region_cells("right_hand")
+    owned = hand[hand < domain.mesh.topology.index_map(2).size_local]
+    x = domain.mesh.geometry.x[compat.geometry_dofs(domain.mesh)[owned]].mean(axis=1)[:, :2]
+    u = disp.u.eval(np.c_[x, np.zeros(len(x))], owned) if len(owned) else np.zeros((0, 2))
+    Q = rotation_matrix(np.pi / 3, 2)
+    expected = (x - example.SHOULDER) @ Q.T + example.SHOULDER - x
+    error = MPI.COMM_WORLD.allreduce(float(np.abs(u - expected).max(initial=0.0)), op=MPI.MAX)
+    assert error < 0.02  # the penalty k = 1e3 mu lets the handle lag by about mu/k relative

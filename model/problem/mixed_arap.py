@@ -86,7 +86,8 @@ class Dirichlet:
 @dataclass
 class ArapResult:
     """The displacement (P1), the per-step Newton iterations and linear iterations, the wall time of the solves,
-    the global number of unknowns and the final energy (without multiplier terms, which vanish)."""
+    the global number of unknowns, the final energy (without multiplier terms, which vanish), the halvings of the
+    load step, the load factors reached and (mixed form) the rotations."""
 
     u: fem.Function
     formulation: str
@@ -96,6 +97,8 @@ class ArapResult:
     energy: float
     cut_backs: int = 0
     steps: list[float] = field(default_factory=list)
+    #: the mixed form's R per local cell (num_cells, d, d); None for the displacement formulation
+    rotations: np.ndarray | None = None
 
 
 class ArapProblem:
@@ -281,10 +284,10 @@ class ArapProblem:
         elapsed = time.perf_counter() - start
         dofs = self.W.dofmap.index_map.size_global * self.W.dofmap.index_map_bs
         return ArapResult(self.displacement(), self.formulation, iterations, elapsed, dofs, self.energy_value(),
-                          cut_backs, reached)
+                          cut_backs, reached, self.rotations() if self.formulation == "mixed" else None)
 
     def rotations(self) -> np.ndarray:
-        """R per local cell, (num_cells, d, d) (mixed form; re-based: R = R_ref after a converged step)."""
+        """R per local cell, (num_cells, d, d) (mixed form; after a converged step R = R_ref: re-based)."""
         blocks = self.R_ref.x.array.reshape(-1, self.dim, self.dim)
         return blocks[compat.cell_dofs(self.R_ref.function_space.dofmap)[:, 0]].copy()
 
