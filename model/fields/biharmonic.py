@@ -101,7 +101,11 @@ def biharmonic_weights(msh, handles: Sequence[Handle]) -> list[fem.Function]:
     W0 = W.sub(0)
     V0, _ = W0.collapse()
     located = [_locate((W0, V0), h) for h in handles]
-    dofs = [np.concatenate([d[0] for d in located]), np.concatenate([d[1] for d in located])]
+    # DirichletBC takes its dofs sorted (it finds the owned ones by bisection, owned indices coming first):
+    # the handles' sorted lists concatenated are not, and on 2 ranks an owned dof after a ghost one was
+    # counted as a ghost, its row left without the diagonal 1 (a zero row: MUMPS INFOG(1) = -10)
+    order = np.argsort(np.concatenate([d[0] for d in located]), kind="stable")
+    dofs = [np.concatenate([d[0] for d in located])[order], np.concatenate([d[1] for d in located])[order]]
     value = fem.Function(V0)
     bc = fem.dirichletbc(value, dofs, W0)
     A = fem_petsc.assemble_matrix(a, bcs=[bc])
