@@ -29,6 +29,7 @@ from model.config import parse  # noqa: E402
 from model.domain.distribute import build_domain  # noqa: E402
 from model.pipeline import build  # noqa: E402
 from model.problem.mixed_arap import ArapProblem, ArapResult, Dirichlet, Handle  # noqa: E402
+from model.solvers.arap import solve_arap  # noqa: E402
 from model.solvers.loadstepping import step_loads  # noqa: E402
 from model.solvers.newton import NewtonSolver  # noqa: E402
 
@@ -61,9 +62,8 @@ def pose_gingerbread(size: float = 0.06, steps: int = 4, stretch: str = "symmetr
     results: dict[str, ArapResult] = {}
     for formulation in ("displacement", "mixed"):
         problem = ArapProblem(domain.mesh, formulation=formulation, stretch=stretch, mu=1.0,
-                              handles=gingerbread_handles(domain), options=OPTIONS)
-        results[formulation] = problem.solve(steps=steps)
-        problem.destroy()
+                              handles=gingerbread_handles(domain))
+        results[formulation] = solve_arap(problem, steps, OPTIONS)
     return domain, results
 
 
@@ -106,10 +106,8 @@ def bend_bar(cells: tuple[int, int, int] = (2, 2, 6), steps: int = 2, value=(0.8
     domain = setup.domain
     bcs = [Dirichlet(domain.boundary_facets("zmin"), [0.0, 0.0, 0.0]),
            Dirichlet(domain.boundary_facets("zmax"), list(value))]
-    problem = ArapProblem(domain.mesh, formulation="mixed", stretch="general", target=S_t, dirichlet=bcs,
-                          options=OPTIONS)
-    mixed = problem.solve(steps=steps)
-    problem.destroy()
+    problem = ArapProblem(domain.mesh, formulation="mixed", stretch="general", target=S_t, dirichlet=bcs)
+    mixed = solve_arap(problem, steps, OPTIONS)
     dofs = setup.problem.space.dofmap.index_map.size_global * setup.problem.space.dofmap.index_map_bs
     return setup.problem.solution, {"time_s": elapsed, "dofs": dofs, "iterations": iterations}, mixed
 

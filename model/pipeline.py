@@ -122,6 +122,7 @@ class Setup:
     activation: ActivationField | None = None
     contacts: list[Any] = field(default_factory=list)  # model.problem.contact objects
     sliding: list[Any] = field(default_factory=list)  # model.problem.bones.SlidingConstraint
+    render: Any = None  # model.fields.embedding.Embedding of output.render_mesh
 
 
 def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
@@ -289,7 +290,15 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
         for i, c in enumerate(config.contacts):
             motion = bones[c.bone].motion if c.bone is not None else None
             contacts.append(build_contact(problem, c.spec, motion, key=f"contact[{i}]"))
-    return Setup(domain, problem, probes, targets, fibres, activation, contacts, sliding)
+    render = None
+    if config.output.render_mesh is not None:
+        from model.fields.embedding import Embedding
+
+        try:
+            render = Embedding.from_file(domain.mesh, config.output.render_mesh)
+        except ValueError as err:
+            raise ConfigError(f"output.render_mesh: {err}") from None
+    return Setup(domain, problem, probes, targets, fibres, activation, contacts, sliding, render)
 
 
 #: the energy keys of a converged step besides "<name>_energy" (ElasticityProblem.energies)
@@ -308,8 +317,9 @@ class RunResult:
 
     ``probes[name]`` and ``reactions[boundary]`` are arrays (converged steps, 3), ``load_factors`` and
     ``energies[key]`` (strain_energy, active_energy, load_potential, total_potential, ...: every energy key
-    of the steps) arrays over the converged steps; ``files`` maps "summary", "xdmf", "png" and "vtu" (a
-    list) to the paths that exist. ``energy`` is the former summary key "energy" (deprecated).
+    of the steps) arrays over the converged steps; ``files`` maps "summary", "xdmf", "png", "vtu" and "render"
+    (lists: the frames of output.render_mesh) to the paths that exist. ``energy`` is the former summary key
+    "energy" (deprecated).
     """
 
     summary: dict[str, Any]
@@ -363,7 +373,8 @@ class RunResult:
     @property
     def files(self) -> dict[str, Any]:
         d = self.directory
-        out: dict[str, Any] = {"summary": d / "summary.json", "vtu": sorted(d.glob("step_*.vtu"))}
+        out: dict[str, Any] = {"summary": d / "summary.json", "vtu": sorted(d.glob("step_*.vtu")),
+                               "render": sorted(p for p in (d / "render").glob("*_[0-9][0-9][0-9][0-9].*"))}
         for name, file in (("xdmf", d / "results.xdmf"), ("png", d / "deformed.png")):
             if file.exists():
                 out[name] = file
@@ -531,7 +542,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
                           stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"),
                           resume=checkpoint["step"] if checkpoint else 0,
                           files=[f for f in earlier.get("files", []) if not f.startswith("checkpoint_")]
-                          if earlier else None)
+                          if earlier else None, render=setup.render)
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
     volumes = Volumes(problem)
@@ -545,6 +556,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         "mesh_quality": {k: setup.domain.quality[k] for k in ("min_radius_ratio", "worst_cell_centroid", "measure")
                          if k in setup.domain.quality},
         "boundary_areas": volumes.areas,
+        **({"render_mesh": setup.render.summary()} if setup.render is not None else {}),
         "probe_points": setup.probes.points_by_name(),
         "solver": _solver_summary(config, solver),
         "versions": versions,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from model.config.base import Flag, Section, key
+from model.config.base import ExistingFile, Flag, Section, key
 
 
 class OutputConfig(Section):
@@ -15,3 +15,7 @@ class OutputConfig(Section):
     xdmf: Flag = key("write the displacement and cell fields per step as XDMF + HDF5", default=True)
     vtu: Flag = key("write one VTU file per step", default=True)
     png: Flag = key("render deformed.png, a picture of the deformed body at the last step", default=True)
+    render_mesh: ExistingFile | None = key(
+        "a surface mesh (OBJ, STL, PLY or any file meshio reads), relative to the configuration file's folder, "
+        "embedded in the body (each vertex moves with the cell around it, or the nearest cell) and written deformed "
+        "at every step in its own format as render/<name>_NNNN.<suffix>", default=None)

@@ -314,7 +314,7 @@ class ResultWriter:
 
     def __init__(self, problem: ElasticityProblem, directory: Path, xdmf: bool = True, vtu: bool = True,
                  png: bool = True, stress_unit: str = "", length_unit: str = "", resume: int = 0,
-                 files: list[str] | None = None) -> None:
+                 files: list[str] | None = None, render: Any = None) -> None:
         self.problem = problem
         self.stress_unit, self.length_unit = stress_unit, length_unit
         self.files: list[str] = list(files or [])
@@ -334,9 +334,15 @@ class ResultWriter:
             self._add("results.xdmf", "results.h5")
         self.count = resume
         self.last_gathered: dict[str, np.ndarray] | None = None
+        #: a model.fields.embedding.Embedding written deformed at every step (render/<name>_NNNN.<suffix>)
+        self.render = render
 
     def write_step(self, time: float) -> None:
         """Write the current state as time ``time`` (the load factor)."""
+        if self.render is not None:
+            name = f"render/{self.render.path.stem}_{self.count + 1:04d}{self.render.path.suffix}"
+            self.render.write(self.directory / name, self.problem.displacement())
+            self._add(name)
         if self.xdmf is None and not (self.want_vtu or self.want_png):
             self.count += 1
             return

@@ -1,7 +1,7 @@
 """ARAP and shape targeting in mixed form, Newton on the whole system (issue 13 item 2; forms.mixed_arap).
 
     problem = ArapProblem(msh, formulation="mixed", stretch="symmetric", mu=1.0, handles=[...], dirichlet=[...])
-    result = problem.solve(steps=4)      # result.u: displacement; result.iterations per load step, time_s
+    result = model.solvers.arap.solve_arap(problem, steps=4)   # result.u; Newton iterations per step, time_s
 
 Unknowns of the ``mixed`` formulation: u (P1, d components), and per cell (DG0) the stretch S (d(d+1)/2 or d^2
 components), the rotation increment phi (1 in 2D, 3 in 3D; R = R_ref Q(phi)) and the multiplier Lambda (d^2) of
@@ -20,7 +20,6 @@ u = 0, S = I, R = I, Lambda = 0.
 from __future__ import annotations
 
 import logging
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -42,7 +41,6 @@ from forms.mixed_arap import (
     stretch_matrix,
 )
 from model import compat
-from model.solvers.form_newton import FormNewton
 
 log = logging.getLogger(__name__)
 
@@ -107,8 +105,7 @@ class ArapProblem:
 
     def __init__(self, msh: dmesh.Mesh, *, formulation: str = "mixed", stretch: str = "symmetric",
                  mu: float = 1.0, kappa: float = 0.0, target: ufl.core.expr.Expr | None = None,
-                 handles: Sequence[Handle] = (), dirichlet: Sequence[Dirichlet] = (),
-                 options: dict | None = None) -> None:
+                 handles: Sequence[Handle] = (), dirichlet: Sequence[Dirichlet] = ()) -> None:
         if formulation not in FORMULATIONS:
             raise ValueError(f"formulation: {formulation!r} is not one of {', '.join(FORMULATIONS)}")
         dim = msh.topology.dim
@@ -189,8 +186,8 @@ class ArapProblem:
                     dofs = fem.locate_dofs_topological(V0, dim - 1, facets)
                     self.bcs.append(fem.dirichletbc(g, dofs))
                 self._bc_values.append((g, np.asarray(bc.value, dtype=float)[:dim]))
-        residual = ufl.derivative(energy, self.w, ufl.TestFunction(self.W))
-        self.solver = FormNewton(residual, self.w, self.bcs, options=options, prefix=None)
+        #: the residual: the Lagrangian's derivative in every unknown (UFL; its Jacobian is derived again)
+        self.residual = ufl.derivative(energy, self.w, ufl.TestFunction(self.W))
         self._rest_state()
 
     # --- state ----------------------------------------------------------------------------------------------
@@ -258,41 +255,10 @@ class ArapProblem:
         """The Lagrangian at the current state, summed over the ranks (the energy at a solution: F = R S)."""
         return float(self.msh.comm.allreduce(fem.assemble_scalar(fem.form(self.energy)), op=MPI.SUM))
 
-    def solve(self, steps: int = 1, max_halvings: int = 6) -> ArapResult:
-        """Load steps t = 1/steps, ..., 1 from the current state (halving a failed step). Collective."""
-        start = time.perf_counter()
-        t, dt, iterations, cut_backs, reached = 0.0, 1.0 / steps, [], 0, []
-        while t < 1.0 - 1e-14:
-            t_next = min(1.0, t + dt)
-            saved = self.w.x.array.copy()
-            self.set_load(t_next)
-            result = self.solver.solve()
-            if not result.converged:
-                self.w.x.array[:] = saved
-                self.w.x.scatter_forward()
-                cut_backs += 1
-                if cut_backs > max_halvings:
-                    raise RuntimeError(f"ARAP ({self.formulation}): Newton failed at load {t_next:.4g} "
-                                       f"({result.reason_name}) after {max_halvings} halvings")
-                dt *= 0.5
-                continue
-            iterations.append(result.iterations)
-            reached.append(t_next)
-            self.rebase_rotations()
-            t = t_next
-            log.info("ARAP %s: load %.4g in %d Newton iterations", self.formulation, t, result.iterations)
-        elapsed = time.perf_counter() - start
-        dofs = self.W.dofmap.index_map.size_global * self.W.dofmap.index_map_bs
-        return ArapResult(self.displacement(), self.formulation, iterations, elapsed, dofs, self.energy_value(),
-                          cut_backs, reached, self.rotations() if self.formulation == "mixed" else None)
-
     def rotations(self) -> np.ndarray:
         """R per local cell, (num_cells, d, d) (mixed form; after a converged step R = R_ref: re-based)."""
         blocks = self.R_ref.x.array.reshape(-1, self.dim, self.dim)
         return blocks[compat.cell_dofs(self.R_ref.function_space.dofmap)[:, 0]].copy()
-
-    def destroy(self) -> None:
-        self.solver.destroy()
 
 
 __all__ = ["ArapProblem", "ArapResult", "Dirichlet", "FORMULATIONS", "Handle", "rotation_matrix"]
