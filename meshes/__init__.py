@@ -19,6 +19,10 @@ arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_inserti
 sphere      body                                              surface (octant: xmin ymin zmax surface)
 =========== ================================================ =======================
 
+A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
+(a gingerbread-man outline, regions body, left_foot, right_foot, left_hand, right_hand, head; boundary outline),
+a :class:`meshes.gingerbread.PlanarMeshData` that ``model.domain.distribute.build_domain`` distributes.
+
 Files: :func:`read_msh` (a gmsh mesh) and :func:`read_geo` (a gmsh geometry script, meshed here); both
 name regions and boundaries by the file's physical groups.
 """

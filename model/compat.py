@@ -137,16 +137,17 @@ def cell_name(msh: dmesh.Mesh) -> str:
 # --- meshes and tags ----------------------------------------------------------------------------------
 
 def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 1,
-                cell: str = "tetrahedron") -> dmesh.Mesh:
+                cell: str = "tetrahedron", gdim: int = 3) -> dmesh.Mesh:
     """A tetrahedral mesh with Lagrange geometry of ``degree`` (cells in dolfinx's node order);
     every rank but the one holding the data passes empty arrays. ``cell="triangle"``: a surface
-    (manifold) mesh of triangles in 3D (gdim 3, tdim 2)."""
-    gdim = 3
+    (manifold) mesh of triangles in 3D (gdim 3, tdim 2); with ``gdim=2`` a plane triangle mesh (the
+    first two columns of ``points``)."""
+    points = np.asarray(points, dtype=np.float64)[:, :gdim]
     if LEGACY:
         domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.Cell(cell, geometric_dimension=gdim), degree, dim=gdim))
     else:
         domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, degree, shape=(gdim,)))
-    return dmesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), np.asarray(points, dtype=np.float64), domain)
+    return dmesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), np.ascontiguousarray(points), domain)
 
 
 def gmsh_node_order(cell: str, num_nodes: int) -> np.ndarray:
