@@ -31,6 +31,10 @@ from model import compat
 
 logger = logging.getLogger(__name__)
 
+#: MUMPS ICNTL(14): the percentage by which the factorisation's workspace exceeds MUMPS's estimate (its default,
+#: 20 or 35, fails with INFOG(1) = -9 on the gingerbread mesh: pivots delayed by the zero multiplier block)
+MUMPS_WORKSPACE_PERCENT = 200
+
 
 def _collapse(part) -> fem.Function:
     return part[0] if isinstance(part, tuple) else part
@@ -74,6 +78,7 @@ class SkinningProblem:
         self.ksp.setType("preonly")
         self.ksp.getPC().setType("lu")
         self.ksp.getPC().setFactorSolverType("mumps")
+        self._first = True
         self.solves = 0
 
     # --- the state -------------------------------------------------------------------------------------
@@ -94,6 +99,11 @@ class SkinningProblem:
         fem_petsc.assemble_matrix(self.A, self._jacobian)
         self.A.assemble()
         self.ksp.setOperators(self.A)
+        if self._first:  # the zero multiplier block delays pivots: MUMPS needs more than its estimated workspace
+            pc = self.ksp.getPC()
+            pc.setFactorSetUpSolverType()
+            pc.getFactorMatrix().setMumpsIcntl(14, MUMPS_WORKSPACE_PERCENT)
+            self._first = False
         r = self._vector(self._residual)
         dy = r.duplicate()
         self.ksp.solve(r, dy)
@@ -109,7 +119,8 @@ class SkinningProblem:
         for v in (r, dy, check):
             v.destroy()
         if reason < 0:
-            raise RuntimeError(f"skinning KKT: the MUMPS solve failed (KSP reason {reason})")
+            info = self.ksp.getPC().getFactorMatrix().getMumpsInfog(1)
+            raise RuntimeError(f"skinning KKT: the MUMPS solve failed (KSP reason {reason}, MUMPS INFOG(1) = {info})")
         self.solves += 1
         logger.debug("skinning KKT solve %d: rel residual %.2e in %.3f s", self.solves, rel,
                      time.perf_counter() - start)
