@@ -26,10 +26,11 @@ AGREE = {
     "thesis-eq4.8", "thesis-eqB.19", "thesis-dUdF",
     "thesis-eq4.13", "thesis-sec3.3.3.1-F", "thesis-sec3.3.3.1-energy", "thesis-sec3.3.3.1-forces",
     "thesis-sec3.3.3.1-hessian", "thesis-eq4.4", "sgi-kkt", "sgi-kkt-stationarity", "sgi-kkt-fem",
+    "sgi-adjoint", "sgi-adjoint-gradient",
 }
 DISAGREE = {"klar-eq2", "klar-eq3-inverted", "klar-eq4-6-inverted", "thesis-eq4.3", "thesis-eq4.12", "thesis-eqC.16",
             "thesis-eq4.9", "thesis-eq4.10", "thesis-eq4.14", "thesis-eq4.15", "thesis-sec3.3.3.1-pressure",
-            "sgi-poisson-equation"}
+            "sgi-poisson-equation", "sgi-adjoint-dlambda", "sgi-adjoint-stationarity"}
 #: the rows of the table before the split of model/verify/seeds.py into a package, in their order
 BEFORE_SPLIT = [
     "klar-eq1", "klar-eq2", "klar-eq2-corrected", "klar-eq3", "klar-eq4-6", "klar-psd", "klar-eq1-inverted",

@@ -28,7 +28,10 @@ Seeds (shared/seeds/):
 
 - mixed-fem-skinning-sgi.txt, "Screened Poisson Equation" and "Mixed FEM": the printed KKT system and its
   stationarity conditions, the PDE against the energy it minimises, the KKT system with the mass and weight
-  matrices against the standard finite elements (``sgi``: operators assembled by dolfinx on a triangle mesh).
+  matrices against the standard finite elements (``sgi``: operators assembled by dolfinx on a triangle mesh);
+  section "1.2 Apply Adjoint Method": dy/dR = -A^-1 (dA/dR) A^-1 b, the printed dy/dR = (dS, dx, 0), the
+  gradients of L(S, x, lambda) and the chain rule for dE/dR against central differences (``sgi``, the mixed
+  ARAP Lagrangian of forms.skinning assembled by model.problem.skinning).
 
 Modules: ``common`` (rows, checks, numerics), ``klar`` and ``thesis`` (one per seed document: transcriptions
 and rows), ``thesis_reference`` (the UFL/dolfinx references of the spring, membrane and time-step rows).
@@ -39,7 +42,8 @@ klar-eq1/eq3/eq4-6 ``-inverted`` rows (``--inverted`` samples: R* = U* V*^T as t
 is a reflection when det F < 0), thesis-eq4.3, -eq4.11, -eq4.12, -eqC.15, -eqC.16 (each with C.22),
 thesis-eq4.5-<law>, thesis-eq4.8, -eqB.19, -eq4.9, -eq4.10, -dUdF, thesis-eq4.13, -eq4.14, -eq4.15,
 thesis-sec3.3.3.1-F, -energy, -forces, -hessian, -pressure, thesis-eq4.4, sgi-kkt, sgi-kkt-stationarity,
-sgi-poisson-equation, sgi-kkt-fem; ``-corrected`` variants for every disagreement.
+sgi-poisson-equation, sgi-kkt-fem, sgi-adjoint, sgi-adjoint-dlambda, sgi-adjoint-stationarity,
+sgi-adjoint-gradient; ``-corrected`` variants for every disagreement.
 """
 
 from __future__ import annotations

@@ -17,6 +17,31 @@ Rows:
 - sgi-kkt-fem: the KKT system with the weights written out, [[W, 0, -W], [0, alpha M, B^T], [-W, B, 0]]
   [g; u; lambda] = [0; M f; 0] (what I stands for), against the standard finite elements (K + alpha M) u = M f
   on the non-uniform mesh; the diagnosis gives how far the identity weights are from it there.
+
+Section "1.2 Apply Adjoint Method" (``_adjoint_rows``), on a 3 x 3 unit square of 18 equal triangles
+(``adjoint_setup``): L(S, x, lambda) = E_ARAP(S) + k/2 ||P x - x_pinned||^2 + lambda (B x - R S) with R = R(theta)
+per triangle as printed, [[cos, sin], [-sin, cos]]. What E_ARAP(S) = ||S - I||^2 means here (forms.skinning):
+S is symmetric per triangle with 3 unknowns (s11, s12, s22), and ||S - I||_F^2 is the Frobenius norm of the full
+2 x 2 matrix, (s11 - 1)^2 + 2 s12^2 + (s22 - 1)^2 (the off-diagonal counts twice), summed over the triangles
+weighted by their areas (the integral; on this mesh of equal triangles a constant factor, the seed's plain sum).
+B x - R S is the 2 x 2 constraint per triangle (grad x of the P1 positions x; lambda 4 values per triangle);
+the pinning penalty k/2 int_pin |x - x_pin|^2 over the bottom row of triangles (x_pin a stretch of the rest
+positions), so P^T P is its mass matrix (the FE meaning of the selection, as W and M for I above). The KKT matrix
+A(theta) (the Hessian of L in y = (S, x, lambda)) and b = -dL/dy(0) are assembled by dolfinx from the UFL
+Lagrangian (model.problem.skinning), dA/dtheta_c by ufl.derivative in theta; theta random in [-0.6, 0.6].
+
+- sgi-adjoint: the printed dy/dR = -A^-1 (dA/dR) A^-1 b, per triangle angle, against central differences of
+  y(theta) = A(theta)^-1 b (h = 1e-5);
+- sgi-adjoint-dlambda: the printed dy/dR = (dS*/dR, dx*/dR, 0): the multiplier's block is not 0;
+  -corrected: the lambda block of -A^-1 (dA/dR) A^-1 b;
+- sgi-adjoint-stationarity: the printed gradients of L, grad_S L = H S + g - R^T lambda, grad_x L = k/2 P^T P
+  (read as k/2 P^T P x, the only vector it makes) + B^T lambda, grad_lambda L = B x - R S, against central
+  differences of L (assembled from UFL) at a random point; H, g the Hessian and gradient at 0 of E_ARAP in
+  (s11, s12, s22), R^T lambda the adjoint of S -> R S in those coordinates (the - d/dS of lambda : R S);
+  -corrected: grad_x L = k P^T (P x - x_pinned) + B^T lambda;
+- sgi-adjoint-gradient: the printed chain rule dE/dtheta = dx/dtheta dE/dx + dS/dtheta dE/dS + dE/dtheta of
+  E(R) = E_ARAP(S*) + k/2 ||P x* - x_pinned||^2 + ||R - R_pinned||^2 (R_pinned = I, int ||R - I||_F^2), with
+  the derivatives of the printed dy/dR, against central differences of E(theta).
 """
 
 from __future__ import annotations
@@ -29,7 +54,9 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 
 from forms.poisson import screened_poisson_energy
+from forms.skinning import arap_energy, pinning_penalty, rotation_regularisation
 from model import compat
+from model.problem.skinning import SkinningProblem
 from model.verify.seeds.common import RTOL, SeedRow
 
 SGI = "mixed-fem-skinning-sgi.txt"
@@ -39,7 +66,7 @@ PERTURB = 0.3  # interior vertices moved by up to this fraction of the cell size
 
 
 def _dense(form) -> np.ndarray:
-    A = fem_petsc.assemble_matrix(fem.form(form))
+    A = fem_petsc.assemble_matrix(fem.form(form) if isinstance(form, ufl.Form) else form)
     A.assemble()
     dense = A.convert("dense").getDenseArray().copy()
     A.destroy()
@@ -146,7 +173,150 @@ def _sgi_rows() -> list[SeedRow]:
                      "with W (areas) and M (mass) for the identities the KKT system gives the FE minimiser of E(u) "
                      f"(K + alpha M) u = M f on a non-uniform mesh; the identity weights are {identity:.2g} from it "
                      "there (the text assumes equal triangles)"))
+    rows += _adjoint_rows()
     return rows
 
 
-__all__ = ["ALPHA", "SGI", "printed_gradients", "printed_kkt", "printed_lagrangian", "sgi_operators"]
+ADJOINT_CELLS = 3  # per edge of the unit square: 18 triangles, 16 vertices, 158 unknowns y
+ADJOINT_K = 10.0
+ADJOINT_H = 1e-5
+
+
+def _dense_vector(form) -> np.ndarray:
+    b = fem_petsc.assemble_vector(fem.form(form))
+    out = b.array.copy()
+    b.destroy()
+    return out
+
+
+class AdjointSetup:
+    """The section-1.2 system on a small mesh, dense (module docstring): ``A(theta)``, ``b``, ``dA(theta, c)``,
+    the index sets ``blocks`` of S, x and lambda in y, the Lagrangian and the seed's E(R) assembled at any y."""
+
+    def __init__(self, seed: int = 12):
+        msh = dmesh.create_unit_square(MPI.COMM_SELF, ADJOINT_CELLS, ADJOINT_CELLS)
+        cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+        bottom = cells[dmesh.compute_midpoints(msh, 2, cells)[:, 1] < 1.0 / ADJOINT_CELLS]
+        X = ufl.SpatialCoordinate(msh)
+        self.problem = p = SkinningProblem(msh, bottom, ADJOINT_K, x_pinned=ufl.as_vector([1.1 * X[0], 0.9 * X[1]]))
+        self.blocks = [np.asarray(p.space.sub(i).collapse()[1], dtype=np.int64) for i in range(3)]
+        self.theta0 = np.random.default_rng(seed).uniform(-0.6, 0.6, len(cells))
+        self.direction = fem.Function(p.angle_space)
+        self._A = fem.form(p.jacobian_form)
+        self._dA = fem.form(ufl.derivative(p.jacobian_form, p.theta, self.direction))
+        self._L = fem.form(p.lagrangian)
+        s, x, _ = ufl.split(p.y)
+        self.E_form = arap_energy(s, p.dx) + pinning_penalty(x, p.x_pinned, p.pinned, p.k, p.dx) \
+            + rotation_regularisation(p.theta, fem.Constant(msh, 0.0), p.dx)
+        self._E = fem.form(self.E_form)
+        p.y.x.array[:] = 0.0
+        self.b = -_dense_vector(p.residual_form)  # -dL/dy at y = 0
+
+    def set(self, theta: np.ndarray, y: np.ndarray | None = None) -> None:
+        self.problem.theta.x.array[:] = theta
+        if y is not None:
+            self.problem.y.x.array[:] = y
+
+    def A(self, theta: np.ndarray) -> np.ndarray:
+        self.set(theta)
+        return _dense(self._A)
+
+    def dA(self, theta: np.ndarray, c: int) -> np.ndarray:
+        """dA/dtheta_c (UFL's derivative of the KKT matrix in the direction of cell c's angle)."""
+        self.set(theta)
+        self.direction.x.array[:] = 0.0
+        self.direction.x.array[c] = 1.0
+        return _dense(self._dA)
+
+    def solve(self, theta: np.ndarray) -> np.ndarray:
+        return np.linalg.solve(self.A(theta), self.b)
+
+    def lagrangian(self, y: np.ndarray) -> float:
+        self.set(self.theta0, y)
+        return float(fem.assemble_scalar(self._L))
+
+    def objective(self, theta: np.ndarray) -> float:
+        """The seed's E(R) at y*(theta)."""
+        self.set(theta, self.solve(theta))
+        return float(fem.assemble_scalar(self._E))
+
+
+def printed_dy(A: np.ndarray, dA: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The seed's dy/dR = -A^-1 (dA/dR) A^-1 b (one angle)."""
+    return -np.linalg.solve(A, dA @ np.linalg.solve(A, b))
+
+
+def printed_stationarity(y: np.ndarray, ops: dict[str, np.ndarray], blocks: list[np.ndarray], k: float,
+                         corrected: bool = False) -> np.ndarray:
+    """The printed grad_S L = H S + g - R^T lambda, grad_x L = k/2 P^T P x + B^T lambda (``corrected``:
+    k P^T (P x - x_pinned) + B^T lambda), grad_lambda L = B x - R S, in y's ordering."""
+    s, x, lam = (y[i] for i in blocks)
+    out = np.empty_like(y)
+    out[blocks[0]] = ops["H"] @ s + ops["g"] - ops["R"].T @ lam
+    if corrected:
+        out[blocks[1]] = k * (ops["PtP"] @ x - ops["Ptx_pinned"]) + ops["B"].T @ lam
+    else:
+        out[blocks[1]] = 0.5 * k * ops["PtP"] @ x + ops["B"].T @ lam
+    out[blocks[2]] = ops["B"] @ x - ops["R"] @ s
+    return out
+
+
+def _adjoint_rows() -> list[SeedRow]:
+    setup = AdjointSetup()
+    theta, b = setup.theta0, setup.b
+    S_, X_, L_ = setup.blocks
+    A = setup.A(theta)
+    n = len(theta)
+    dA = [setup.dA(theta, c) for c in range(n)]
+    printed = np.stack([printed_dy(A, dA[c], b) for c in range(n)], axis=1)
+    fd = np.stack([(setup.solve(theta + ADJOINT_H * e) - setup.solve(theta - ADJOINT_H * e)) / (2 * ADJOINT_H)
+                   for e in np.eye(n)], axis=1)
+    rows = [_row("sgi-adjoint", "1.2 Apply Adjoint Method, dy/dR", _rel(printed, fd),
+                 "the printed dy/dR = -A^-1 (dA/dR) A^-1 b is the derivative of y = A^-1 b (b does not depend on R) "
+                 "against central differences, per triangle angle theta")]
+    lam_max, rest_max = float(np.max(np.abs(fd[L_]))), float(np.max(np.abs(fd[np.concatenate([S_, X_])])))
+    rows.append(_row("sgi-adjoint-dlambda", "1.2 Apply Adjoint Method, dy/dR = (dS/dR, dx/dR, 0)",
+                     _rel(np.zeros_like(fd[L_]), fd[L_]),
+                     "the text writes dy/dR = (dS*/dR, dx*/dR, 0), but the multiplier moves with R: "
+                     f"max |dlambda/dtheta| = {lam_max:.2g} (max |d(S, x)/dtheta| = {rest_max:.2g}); harmless for "
+                     "dE/dR, which does not depend on lambda"))
+    rows.append(_row("sgi-adjoint-dlambda-corrected", "1.2 Apply Adjoint Method, dy/dR = (dS/dR, dx/dR, 0)",
+                     _rel(printed[L_], fd[L_]), "the lambda block of -A^-1 (dA/dR) A^-1 b is dlambda*/dR"))
+    # the printed stationarity conditions, with the blocks of the discrete system (module docstring)
+    k = ADJOINT_K
+    ops = {"H": A[np.ix_(S_, S_)], "g": -b[S_], "B": A[np.ix_(L_, X_)], "R": -A[np.ix_(L_, S_)],
+           "PtP": A[np.ix_(X_, X_)] / k, "Ptx_pinned": b[X_] / k}
+    rng = np.random.default_rng(3)
+    point = rng.standard_normal(len(b))
+    h = 1e-3  # L is quadratic in y: central differences are exact up to rounding
+    grad = np.array([(setup.lagrangian(point + h * e) - setup.lagrangian(point - h * e)) / (2 * h)
+                     for e in np.eye(len(b))])
+    as_printed = printed_stationarity(point, ops, setup.blocks, k)
+    corrected = printed_stationarity(point, ops, setup.blocks, k, corrected=True)
+    rows.append(_row("sgi-adjoint-stationarity", "1.2 Apply Adjoint Method, the gradients of L",
+                     _rel(as_printed, grad),
+                     "grad_S L and grad_lambda L as printed are the derivatives of L "
+                     f"({_rel(as_printed[S_], grad[S_]):.1g}, {_rel(as_printed[L_], grad[L_]):.1g}), but "
+                     "grad_x L = k/2 P^T P + B^T lambda is not: the derivative of k/2 ||P x - x_pinned||^2 is "
+                     "k P^T (P x - x_pinned) (factor 2 and x_pinned "
+                     f"missing; x block {_rel(as_printed[X_], grad[X_]):.2g} off)"))
+    rows.append(_row("sgi-adjoint-stationarity-corrected", "1.2 Apply Adjoint Method, the gradients of L",
+                     _rel(corrected, grad), "grad_x L = k P^T (P x - x_pinned) + B^T lambda"))
+    # the printed chain rule for dE/dR with the printed dy/dR
+    y = np.linalg.solve(A, b)
+    setup.set(theta, y)
+    p = setup.problem
+    dEdy = _dense_vector(ufl.derivative(setup.E_form, p.y, ufl.TestFunction(p.space)))
+    dEdtheta = _dense_vector(ufl.derivative(setup.E_form, p.theta, ufl.TestFunction(p.angle_space)))
+    chain = printed[X_].T @ dEdy[X_] + printed[S_].T @ dEdy[S_] + dEdtheta
+    fd_E = np.array([(setup.objective(theta + ADJOINT_H * e) - setup.objective(theta - ADJOINT_H * e))
+                     / (2 * ADJOINT_H) for e in np.eye(n)])
+    rows.append(_row("sgi-adjoint-gradient", "1.2 Apply Adjoint Method, dE/dR", _rel(chain, fd_E),
+                     "the printed chain rule dE/dtheta = dx/dtheta dE/dx + dS/dtheta dE/dS + dE/dtheta of E(R) = "
+                     "E_ARAP(S*) + k/2 ||P x* - x_pinned||^2 + ||R - I||^2, with the printed dy/dR, against central "
+                     "differences of E(theta)"))
+    return rows
+
+
+__all__ = ["ADJOINT_CELLS", "ALPHA", "SGI", "AdjointSetup", "printed_dy", "printed_gradients", "printed_kkt",
+           "printed_lagrangian", "printed_stationarity", "sgi_operators"]
