@@ -23,6 +23,9 @@ A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): `
 (a gingerbread-man outline, regions body, left_foot, right_foot, left_hand, right_hand, head; boundary outline),
 a :class:`meshes.gingerbread.PlanarMeshData` that ``model.domain.distribute.build_domain`` distributes.
 
+Render surfaces (output.render_mesh): ``meshes.surfaces.tube`` (a closed tube, round or rounded-square) and
+``write_surface`` (any format meshio writes).
+
 Files: :func:`read_msh` (a gmsh mesh) and :func:`read_geo` (a gmsh geometry script, meshed here); both
 name regions and boundaries by the file's physical groups.
 """
