@@ -63,6 +63,7 @@ import dataclasses
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import ufl
@@ -183,6 +184,9 @@ class ElasticityProblem:
         self._no_activation = fem.Constant(msh, PETSc.ScalarType(0.0))
         #: (P, dx): first Piola-Kirchhoff stress of each material and of each cell integral of an added energy
         self.stress_terms: list[tuple[ufl.core.expr.Expr, ufl.Measure]] = []
+        #: terms coupling distant dofs (model.problem.body_contact.BodyContact): refreshed in update_state, their
+        #: residual and matrix added by the Newton solver (add_residual(b), add_jacobian(A))
+        self.couplings: list[Any] = []
         self.extra_energies: list[ufl.Form] = []
         #: the name of each added energy (parallel to extra_energies): "contact", "sliding", "added", ...
         self.extra_energy_names: list[str] = []
@@ -446,6 +450,8 @@ class ElasticityProblem:
         Skipped when the solution is unchanged since the last refresh (SNES evaluates the
         residual and the Jacobian at the same iterate; outputs evaluate it once more).
         """
+        for coupling in self.couplings:  # each keeps its own stamp of the solution it was paired at
+            coupling.update()
         if not self.polar_fields and not self.eigen_fields:
             return
         current = self.solution.x.array

@@ -351,6 +351,8 @@ class NewtonSolver:
         bcs = self.problem.bcs
         compat.apply_lifting(b, [self.jacobian_form], bcs=[bcs], x0=[x], alpha=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        for coupling in self.problem.couplings:  # contact between bodies: Pi^T dPi_c/dz (body_contact)
+            coupling.add_residual(b)
         compat.set_bc(b, bcs, x, -1.0)
 
     def _objective(self, snes: PETSc.SNES, x: PETSc.Vec) -> float:
@@ -429,6 +431,10 @@ class NewtonSolver:
         A.zeroEntries()
         fem_petsc.assemble_matrix(A, self.jacobian_form, bcs=self.problem.bcs)
         A.assemble()
+        if self.problem.couplings:  # contact between bodies: the couplings through the closest points
+            for coupling in self.problem.couplings:
+                coupling.add_jacobian(A)
+            A.assemble()
 
     def solve(self) -> SolveResult:
         """Newton from the current solution; the solution holds the last iterate afterwards."""

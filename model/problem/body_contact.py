@@ -1,0 +1,320 @@
+"""Contact and sliding between deformable bodies (surfaces of one mesh): penalty with closest-point search.
+
+A node of the ``slave`` surface at x_s = X_s + u_s is paired with the closest point x* of the deformed ``master``
+surface (a triangle T of it, barycentric coordinates b_j, x* = sum_j b_j x_j), whose outward unit normal is n
+(T's, in the current configuration). The gap is
+
+    g = n . (x_s - x*) = n . (X_s + u_s - X* - z),   X* = sum_j b_j X_j,  z = sum_j b_j u_j = (Pi u)_s,
+
+and the energy, integrated over the slave surface with the nodal ("vertex") rule,
+
+    contact:  Pi_c = int_slave (k/2) min(g, 0)^2 dA      (frictionless, non-penetration g >= 0),
+    sliding:  Pi_c = int_slave (k/2) g^2 dA              (the thesis' zero-length normal springs: the slave
+                                                           surface stays on the master surface, free to slide).
+
+UFL writes Pi_c(u, z) with z a Function of its own (the master displacement at the slave nodes' closest
+points) and derives every derivative of it; the closest points enter through the linear interpolation z = Pi u
+(Pi: one row per slave dof, the b_j of its master triangle's nodes), so by the chain rule
+
+    R = dPi_c/du + Pi^T dPi_c/dz,     K = d2Pi_c/du2 + (d2Pi_c/dudz) Pi + Pi^T (d2Pi_c/dzdu) + Pi^T (d2Pi_c/dz2) Pi.
+
+What is lagged: the pairing (T, b_j) and the normal n are found again from the deformed surfaces before every
+residual and Jacobian evaluation (every Newton iteration) and held fixed in the derivatives, whose exact
+linearisation would add terms proportional to g (the normal's rotation) and to the tangential slip of x*
+(zero at a closest point where T is flat). Newton therefore converges quadratically once the pairing stops
+changing, and superlinearly on curved surfaces (measured in tests/test_body_contact.py).
+
+P1 displacement formulation only (the nodal rule); the master surface's triangles are gathered on every rank
+(each rank pairs its own slave nodes), so the search is MPI-correct with the same result on any number of ranks.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms.obstacles import penalty_energy, sliding_energy
+from model import compat
+from model.problem.bones import surface_measure
+from model.problem.elasticity import ElasticityProblem
+
+log = logging.getLogger(__name__)
+
+KINDS = ("contact", "sliding")
+
+
+def closest_points_on_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For points (n, 3) and one triangle each (n, 3, 3): the closest points (n, 3) and their barycentric
+    coordinates (n, 3) (Ericson, Real-Time Collision Detection, 5.1.5: vertex, edge or face region)."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    ab, ac, ap = b - a, c - a, points - a
+    d1, d2 = np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap)
+    bp = points - b
+    d3, d4 = np.einsum("ij,ij->i", ab, bp), np.einsum("ij,ij->i", ac, bp)
+    cp = points - c
+    d5, d6 = np.einsum("ij,ij->i", ab, cp), np.einsum("ij,ij->i", ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    bary = np.zeros((len(points), 3))
+    done = np.zeros(len(points), dtype=bool)
+
+    def assign(mask: np.ndarray, w: np.ndarray) -> None:
+        mask = mask & ~done
+        bary[mask] = w[mask]
+        done[mask] = True
+
+    one, zero = np.ones(len(points)), np.zeros(len(points))
+    assign((d1 <= 0) & (d2 <= 0), np.c_[one, zero, zero])
+    assign((d3 >= 0) & (d4 <= d3), np.c_[zero, one, zero])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = d1 / (d1 - d3)
+        assign((vc <= 0) & (d1 >= 0) & (d3 <= 0), np.c_[1 - v, v, zero])
+        assign((d6 >= 0) & (d5 <= d6), np.c_[zero, zero, one])
+        w = d2 / (d2 - d6)
+        assign((vb <= 0) & (d2 >= 0) & (d6 <= 0), np.c_[1 - w, zero, w])
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        assign((va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0), np.c_[zero, 1 - w, w])
+        denom = 1.0 / (va + vb + vc)
+        v, w = vb * denom, vc * denom
+        assign(np.ones(len(points), dtype=bool), np.c_[1 - v - w, v, w])
+    closest = np.einsum("ij,ijk->ik", bary, triangles)
+    return closest, bary
+
+
+class BodyContact:
+    """Penalty contact (``kind="contact"``) or sliding (``"sliding"``) of ``slave`` against ``master``, two named
+    surfaces of the problem's mesh (module docstring). Adds its energy to the problem and registers itself as a
+    coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices)."""
+
+    def __init__(self, problem: ElasticityProblem, slave: str, master: str, k: float, kind: str = "contact",
+                 neighbours: int = 8, name: str | None = None) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
+        if not (np.isfinite(k) and k > 0):
+            raise ValueError(f"k: {k!r} must be a finite number > 0")
+        if problem.formulation != "displacement" or problem.degree != 1:
+            raise ValueError("contact between bodies: the P1 displacement formulation only (nodal pairing)")
+        for surface in (slave, master):
+            error = problem.domain.boundary_error(surface)
+            if error:
+                raise ValueError(f"surface: {error}")
+        self.problem, self.slave, self.master, self.kind = problem, slave, master, kind
+        self.name = name or f"{slave}-{master}"
+        self.neighbours = neighbours
+        msh = problem.domain.mesh
+        self.comm: MPI.Comm = msh.comm
+        V = problem.space
+        self.V = V
+        self.bs = V.dofmap.index_map_bs
+        fdim = msh.topology.dim - 1
+        msh.topology.create_connectivity(fdim, msh.topology.dim)
+        # slave nodes: the owned block dofs on the slave facets
+        blocks = np.asarray(fem.locate_dofs_topological(V, fdim, problem.domain.boundary_facets(slave)), dtype=np.int32)
+        owned = V.dofmap.index_map.size_local
+        self.slave_blocks = blocks[blocks < owned]
+        self.reference = V.tabulate_dof_coordinates()[:, :3]
+        self._master_setup(fdim)
+        # the master point data at the slave nodes: X*, n and z (master displacement there)
+        self.X_star, self.normal, self.z = (fem.Function(V, name=n) for n in ("X_star", "normal", "z_master"))
+        self.k = fem.Constant(msh, PETSc.ScalarType(k))
+        u = problem.solution
+        X = ufl.SpatialCoordinate(msh)
+        self.gap = ufl.dot(self.normal, X + u - self.X_star - self.z)
+        ds = surface_measure(problem, slave, "vertex")
+        self._ds = ds
+        psi = penalty_energy(self.gap, self.k) if kind == "contact" else sliding_energy(self.gap, self.k)
+        energy = psi * ds
+        v, w = ufl.TestFunction(V), ufl.TrialFunction(V)
+        dz = ufl.derivative(energy, self.z, v)
+        pressure = -self.k * ufl.conditional(ufl.le(self.gap, 0.0), self.gap, 0.0) if kind == "contact" \
+            else -self.k * self.gap
+        # compiled on first use, after the problem's own forms: compiling a form here, before the problem adds
+        # this energy with a new TestFunction, gave that test function another hash than the problem's earlier
+        # ones on dolfinx 0.5 ("Found different Arguments with same number and part")
+        self._ufl = {"Rz": dz, "Kuz": ufl.derivative(ufl.derivative(energy, u, v), self.z, w),
+                     "Kzz": ufl.derivative(dz, self.z, w), **{f"force{i}": pressure * self.normal[i] * ds
+                                                              for i in range(3)}}
+        self._compiled: dict[str, Any] = {}
+        self._stamp: np.ndarray | None = None
+        self.Pi: PETSc.Mat | None = None
+        problem.add_energy(energy, "contact" if kind == "contact" else "sliding")
+        problem.couplings.append(self)
+
+    # --- the master surface -----------------------------------------------------------------------------
+    def _master_setup(self, fdim: int) -> None:
+        """Owned master facets: their three nodes (local block dofs) ordered so that (x1 - x0) x (x2 - x0) points
+        out of the body (away from the facet's cell's fourth vertex), and their global block indices."""
+        msh, V = self.problem.domain.mesh, self.V
+        facets = np.asarray(self.problem.domain.boundary_facets(self.master), dtype=np.int32)
+        facets = facets[facets < msh.topology.index_map(fdim).size_local]
+        geometry_to_dof = np.empty(len(msh.geometry.x), dtype=np.int64)
+        cell_nodes = compat.geometry_dofs(msh)[:, :4]
+        cell_blocks = compat.cell_dofs(V.dofmap)[:, :4]
+        geometry_to_dof[cell_nodes.ravel()] = cell_blocks.ravel()
+        nodes = compat.entity_geometry(msh, fdim, facets).reshape(len(facets), -1)[:, :3]
+        f2c = msh.topology.connectivity(fdim, msh.topology.dim)
+        cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+        x = msh.geometry.x
+        tri = nodes.copy()
+        if len(facets):
+            opposite = np.array([[n for n in cell_nodes[c] if n not in set(face)][0] for c, face in zip(cells, nodes)])
+            normal = np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
+            inward = np.einsum("ij,ij->i", normal, x[opposite] - x[tri[:, 0]]) > 0
+            tri[inward] = tri[inward][:, [0, 2, 1]]
+        self.master_local = geometry_to_dof[tri]  # (facets, 3) local block dofs
+        self.master_global = np.asarray(V.dofmap.index_map.local_to_global(self.master_local.ravel().astype(np.int32)),
+                                        dtype=np.int64).reshape(-1, 3)
+        self.master_count = self.comm.allreduce(len(facets), op=MPI.SUM)
+        if self.master_count == 0:
+            raise ValueError(f"surface: {self.master!r} has no facet")
+
+    def _gather_master(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every rank's master triangles: reference (m, 3, 3), current (m, 3, 3) and global block dofs (m, 3)."""
+        u = self.problem.solution.x.array.reshape(-1, self.bs)
+        X = self.reference[self.master_local]
+        x = X + u[self.master_local]
+        parts = self.comm.allgather((X, x, self.master_global))
+        return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+                np.concatenate([p[2] for p in parts]))
+
+    # --- the pairing -------------------------------------------------------------------------------------
+    def update(self) -> None:
+        """Pair every owned slave node with its closest master point at the current solution; set X*, n, z and
+        the interpolation matrix Pi. Collective."""
+        from scipy.spatial import cKDTree
+
+        current = self.problem.solution.x.array
+        if self._stamp is not None and np.array_equal(self._stamp, current):
+            return
+        X_tri, x_tri, g_tri = self._gather_master()
+        u = current.reshape(-1, self.bs)
+        slave = self.slave_blocks
+        xs = self.reference[slave] + u[slave]
+        n = len(slave)
+        k = min(self.neighbours, len(x_tri))
+        best_d = np.full(n, np.inf)
+        best_t = np.zeros(n, dtype=np.int64)
+        best_b = np.zeros((n, 3))
+        if n:
+            _, near = cKDTree(x_tri.mean(axis=1)).query(xs, k=k)
+            near = np.asarray(near).reshape(n, k)
+            for j in range(k):
+                closest, bary = closest_points_on_triangles(xs, x_tri[near[:, j]])
+                d = np.linalg.norm(xs - closest, axis=1)
+                better = d < best_d - 1e-14 * np.maximum(d, 1.0)
+                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
+        tri_x = x_tri[best_t]
+        normal = np.cross(tri_x[:, 1] - tri_x[:, 0], tri_x[:, 2] - tri_x[:, 0])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        X_star = np.einsum("ij,ijk->ik", best_b, X_tri[best_t])
+        z = np.einsum("ij,ijk->ik", best_b, x_tri[best_t] - X_tri[best_t])
+        for function, values in ((self.X_star, X_star), (self.normal, normal), (self.z, z)):
+            array = function.x.array.reshape(-1, self.bs)
+            array[:] = 0.0
+            array[slave] = values
+            function.x.scatter_forward()
+        self._build_interpolation(best_b, g_tri[best_t])
+        self.distance = best_d
+        self._stamp = current.copy()
+
+    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
+        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices."""
+        imap = self.V.dofmap.index_map
+        bs = self.bs
+        n_local, n_global = imap.size_local * bs, imap.size_global * bs
+        if self.Pi is not None:
+            self.Pi.destroy()
+        Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)), nnz=(3, 3), comm=self.comm)
+        Pi.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        rows = np.asarray(imap.local_to_global(self.slave_blocks.astype(np.int32)), dtype=np.int64)
+        index = PETSc.IntType
+        for c in range(bs):
+            for r, cols, w in zip(rows, columns, bary):
+                Pi.setValues(np.array([r * bs + c], dtype=index), (cols * bs + c).astype(index), w,
+                             addv=PETSc.InsertMode.INSERT)
+        Pi.assemble()
+        self.Pi = Pi
+
+    def _form(self, key: str) -> Any:
+        if key not in self._compiled:
+            self._compiled[key] = fem.form(self._ufl[key])
+        return self._compiled[key]
+
+    # --- the Newton solver's hooks ------------------------------------------------------------------------
+    def add_residual(self, b: PETSc.Vec) -> None:
+        """b += Pi^T dPi_c/dz (b: the assembled residual, reverse-scattered). Collective."""
+        self.update()
+        Rz = fem_petsc.assemble_vector(self._form("Rz"))
+        Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = self.Pi.createVecRight()
+        self.Pi.multTranspose(Rz, out)
+        with b.localForm() as local, out.localForm() as extra:
+            local.array[: len(extra.array_r)] += extra.array_r
+        Rz.destroy()
+        out.destroy()
+
+    def coupling_matrix(self) -> PETSc.Mat:
+        """C = K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi with the rows and columns of the Dirichlet dofs zeroed."""
+        self.update()
+        Kuz = fem_petsc.assemble_matrix(self._form("Kuz"))
+        Kuz.assemble()
+        Kzz = fem_petsc.assemble_matrix(self._form("Kzz"))
+        Kzz.assemble()
+        C1 = Kuz.matMult(self.Pi)
+        C = C1.copy()
+        C.axpy(1.0, C1.transpose(), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        C.axpy(1.0, Kzz.PtAP(self.Pi), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        fixed = self._dirichlet_rows()
+        C.zeroRowsColumns(fixed, diag=0.0)
+        for m in (Kuz, Kzz, C1):
+            m.destroy()
+        return C
+
+    def _dirichlet_rows(self) -> np.ndarray:
+        imap, bs = self.V.dofmap.index_map, self.bs
+        owned = imap.size_local * bs
+        dofs = [np.asarray(bc.dof_indices()[0], dtype=np.int64) for bc in self.problem.bcs]
+        local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
+        local = local[local < owned]
+        blocks = np.asarray(imap.local_to_global((local // bs).astype(np.int32)), dtype=np.int64)
+        return (blocks * bs + local % bs).astype(PETSc.IntType)
+
+    def add_jacobian(self, A: PETSc.Mat) -> None:
+        """A += C (coupling_matrix), new nonzeros allowed (the master-slave couplings move). Collective; A is
+        assembled again by the caller."""
+        C = self.coupling_matrix()
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        start, end = C.getOwnershipRange()
+        for row in range(start, end):
+            cols, values = C.getRow(row)
+            if len(cols):
+                A.setValues(np.array([row], dtype=PETSc.IntType), cols, values, addv=PETSc.InsertMode.ADD_VALUES)
+        C.destroy()
+
+    # --- report -------------------------------------------------------------------------------------------
+    def report(self) -> dict[str, Any]:
+        """max_penetration (max(0, -min g) over the slave nodes), max_gap (max(0, max g)), force on the slave body
+        (int p n dA, p = -k min(g, 0); sliding: p = -k g), active_points (slave nodes with g < 0), the same on
+        every rank."""
+        self.problem.update_state()
+        u = self.problem.solution.x.array.reshape(-1, self.bs)
+        slave = self.slave_blocks
+        gap = np.einsum("ij,ij->i", self.normal.x.array.reshape(-1, self.bs)[slave],
+                        self.reference[slave] + u[slave] - self.X_star.x.array.reshape(-1, self.bs)[slave]
+                        - self.z.x.array.reshape(-1, self.bs)[slave])
+        low = self.comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)
+        high = self.comm.allreduce(float(gap.max(initial=-np.inf)), op=MPI.MAX)
+        active = self.comm.allreduce(int(np.sum(gap < 0.0)), op=MPI.SUM)
+        force = [float(self.comm.allreduce(fem.assemble_scalar(self._form(f"force{i}")), op=MPI.SUM))
+                 for i in range(3)]
+        return {"pair": self.name, "kind": self.kind, "max_penetration": max(0.0, -low), "max_gap": max(0.0, high),
+                "force": force, "active_points": active}
+
+
+__all__ = ["BodyContact", "KINDS", "closest_points_on_triangles"]
