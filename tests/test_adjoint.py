@@ -176,10 +176,15 @@ def check_material_taylor(setup, raw: dict, solver_options: dict, parameters: di
                           h0: float, seed: int) -> None:
     """For each parameter (name -> "cell" or "region"): material_gradient on the pipeline's problem (numbers in
     its residual), Taylor-tested on the twin whose parameter fields are perturbed (per cell: a random direction
-    of +-1 times the parameter; region: the parameter times 1 on every cell, gradient the scalar dJ/dp)."""
+    of +-1 times the parameter (cell_noise); region: the parameter times 1 on every cell, gradient the scalar
+    dJ/dp)."""
     problem = setup.problem
     solver = NewtonSolver(problem, options=solver_options)
     assert step_loads(solver, 2)
+    if setup.activation is not None:  # a generic activation per cell (shared by the twin's law)
+        alpha = setup.activation.function
+        alpha.x.array[:] = 0.85 + 0.15 * cell_noise(alpha, seed + 1)
+        assert solver.solve().converged
     twin_problem, fields = twin(setup, raw, tuple(parameters))
     twin_solver = NewtonSolver(twin_problem, options=solver_options)
     assert step_loads(twin_solver, 2)
@@ -187,13 +192,12 @@ def check_material_taylor(setup, raw: dict, solver_options: dict, parameters: di
     scale = np.abs(problem.solution.x.array).max(initial=0.0)
     assert MPI.COMM_WORLD.allreduce(difference, op=MPI.MAX) <= 1e-9 * MPI.COMM_WORLD.allreduce(scale, op=MPI.MAX)
     objective = objective_of(problem)
-    rng = np.random.default_rng(seed + MPI.COMM_WORLD.rank)
     for name, kind in parameters.items():
         c = fields[name]
         value = float(getattr(problem.materials[0][1], name))
         if kind == "cell":
             g = material_gradient(problem, objective, "all", name, per_cell=True)
-            cells = value * rng.uniform(-1.0, 1.0, len(g))
+            cells = value * owned_cell_values(c, cell_noise(c, seed))
             gradient_dot = MPI.COMM_WORLD.allreduce(float(g @ cells), op=MPI.SUM)
             # the scalar gradient is the sum of the per-cell one
             total = material_gradient(problem, objective, "all", name)
@@ -230,7 +234,8 @@ def test_neo_hookean_mu_and_lmbda_gradients_pass_the_taylor_test() -> None:
 
 
 def test_muscle_sigma_max_and_c1_gradients_pass_the_taylor_test() -> None:
-    """dJ/dsigma_max per cell and dJ/dc1 of the region of the activated, stretched muscle block (fibre law)."""
+    """dJ/dsigma_max per cell and dJ/dc1 of the region of the stretched muscle block (fibre law), activated per
+    cell between 0.7 and 1 (a uniform block is symmetric, and these gradients of the sideways target vanish)."""
     raw = muscle_block()
     setup = build(parse(raw))
 
@@ -240,7 +245,8 @@ def test_muscle_sigma_max_and_c1_gradients_pass_the_taylor_test() -> None:
         dx = ufl.dx(domain=problem.domain.mesh, metadata={"quadrature_degree": 4})
         return 0.5 * ufl.inner(problem.u - target, problem.u - target) * dx
 
-    check_material_taylor(setup, raw, TIGHT, {"sigma_max": "cell", "c1": "region"}, objective_of, h0=0.1, seed=7)
+    options = {**TIGHT, "snes_linesearch_type": "basic"}  # bt stalls at the residual's rounding level here
+    check_material_taylor(setup, raw, options, {"sigma_max": "cell", "c1": "region"}, objective_of, h0=0.02, seed=7)
 
 
 def test_material_gradient_refuses_what_it_cannot_differentiate() -> None:
@@ -257,14 +263,24 @@ def test_material_gradient_refuses_what_it_cannot_differentiate() -> None:
         material_gradient(problem, J, "all", "isotropic")
 
 
+def cell_noise(field: fem.Function, seed: int) -> np.ndarray:
+    """Values in [-1, 1] per dof of a DG0 field, a hash of the cell's midpoint: the same field on any number of
+    ranks (a generic per-cell field, unlike a random generator seeded per rank)."""
+    msh = field.function_space.mesh
+    size = msh.comm.allreduce(float(np.abs(msh.geometry.x).max()), op=MPI.MAX)
+    x = field.function_space.tabulate_dof_coordinates() * 1e3 / size
+    phase = x @ np.array([12.9898, 78.233, 37.719]) + 1.618 * seed
+    return 2.0 * np.modf(np.abs(np.sin(phase)) * 43758.5453)[0] - 1.0
+
+
 def test_activation_gradient_with_penalty_contact_passes_the_taylor_test() -> None:
-    """The muscle block (fibre law, activated) pressed against a rigid plane by penalty contact (x <= 9.5 mm:
-    its face xmax at 10 mm starts 0.5 mm inside; nodal quadrature, so the active set is that of the nodes):
+    """The muscle block (fibre law, activated) pressed against a rigid plane by penalty contact (x <= 9.6 mm:
+    its face xmax at 10 mm starts 0.4 mm inside; nodal quadrature, so the active set is that of the nodes):
     dJ/dalpha per cell, and per region (alpha = a on every cell: dJ/da = sum over the cells, region_gradient).
     The contact is active at the state and its active set (the sign of every nodal gap, with a margin) is the
     same at every perturbed state of the Taylor steps (the penalty's min(g, 0)^2 is smooth there)."""
     raw = muscle_block()
-    raw["contact"] = [{"surface": "xmax", "obstacle": "plane", "point": [0.0095, 0.0, 0.0], "normal": [-1.0, 0.0, 0.0],
+    raw["contact"] = [{"surface": "xmax", "obstacle": "plane", "point": [0.0096, 0.0, 0.0], "normal": [-1.0, 0.0, 0.0],
                        "method": "penalty", "penalty": 1e8, "quadrature_degree": "vertex"}]
     setup = build(parse(raw))
     problem, alpha = setup.problem, setup.activation.function
@@ -272,16 +288,14 @@ def test_activation_gradient_with_penalty_contact_passes_the_taylor_test() -> No
     assert any(name == "contact" for name in problem.extra_energy_names)  # the penalty is in the residual
     solver = NewtonSolver(problem, options=TIGHT)
     assert step_loads(solver, 2)
-    rng = np.random.default_rng(11 + MPI.COMM_WORLD.rank)
-    alpha.x.array[:] = rng.uniform(0.7, 1.0, alpha.x.array.shape)
-    alpha.x.scatter_forward()
+    alpha.x.array[:] = 0.85 + 0.15 * cell_noise(alpha, 1)  # the same field on any number of ranks
     assert solver.solve().converged
     active = contact.active_points()
     gaps = contact.nodal_gaps()
     total = MPI.COMM_WORLD.allreduce(len(gaps), op=MPI.SUM)
     assert 0 < active < total, (active, total)
     margin = MPI.COMM_WORLD.allreduce(float(np.abs(gaps).min(initial=np.inf)), op=MPI.MIN)
-    assert margin > 1e-6, margin  # every node clearly in or out of contact
+    assert margin > 1e-5, margin  # every node clearly in or out of contact (2 % of the initial overlap)
     signs = gaps <= 0.0
 
     def same_active_set() -> None:
@@ -293,10 +307,9 @@ def test_activation_gradient_with_penalty_contact_passes_the_taylor_test() -> No
     target = ufl.as_vector([0.02 * X[2] * (0.04 - X[2]), 0.0, 0.0])
     dx = ufl.dx(domain=problem.domain.mesh, metadata={"quadrature_degree": 4})
     objective = 0.5 * ufl.inner(u - target, u - target) * dx
-    check_taylor(problem, solver, alpha, objective, rng.uniform(-1.0, 1.0, alpha.x.array.size), h0=0.05,
-                 after_solve=same_active_set)
+    check_taylor(problem, solver, alpha, objective, cell_noise(alpha, 2), h0=0.02, after_solve=same_active_set)
     per_cell = owned_cell_values(alpha, adjoint_gradient(problem, objective, alpha))
     region = region_gradient(problem, per_cell, "all")
-    check_taylor(problem, solver, alpha, objective, np.ones(alpha.x.array.size), h0=0.05, gradient_dot=region,
+    check_taylor(problem, solver, alpha, objective, np.ones(alpha.x.array.size), h0=0.02, gradient_dot=region,
                  after_solve=same_active_set)
     solver.destroy()
