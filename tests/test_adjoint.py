@@ -154,7 +154,7 @@ def twin(setup, raw: dict, parameters: tuple[str, ...]) -> tuple[ElasticityProbl
     law = with_parameter_values(law, {name: (f, [getattr(law, name)]) for name, f in fields.items()})
     disc = raw["discretization"]
     problem = ElasticityProblem(setup.domain, [(region, law)], disc.get("degree", 1),
-                                disc.get("quadrature_degree", "auto"))
+                                disc.get("quadrature_degree", "auto"), disc.get("formulation", "displacement"))
     for b in raw["boundary"]:
         if b["type"] == "displacement":
             problem.add_dirichlet(b["on"], [0, 1, 2], b["value"])
@@ -211,13 +211,18 @@ def check_material_taylor(setup, raw: dict, solver_options: dict, parameters: di
     twin_solver.destroy()
 
 
-def test_neo_hookean_mu_and_lmbda_gradients_pass_the_taylor_test() -> None:
-    """dJ/dmu per cell and dJ/dlmbda of the region (the bulk parameter) of a neo-Hookean block bent by a
-    traction, J = 1/2 int |u - u_target|^2."""
+@pytest.mark.parametrize("law, formulation", [("neo_hookean", "displacement"), ("neo_hookean", "mixed"),
+                                             ("corotated", "displacement")])
+def test_isotropic_mu_and_lmbda_gradients_pass_the_taylor_test(law: str, formulation: str) -> None:
+    """dJ/dmu per cell and dJ/dlmbda of the region (the bulk parameter) of a block bent by a traction,
+    J = 1/2 int |u - u_target|^2: neo-Hookean in both formulations (mixed: lmbda enters only the pressure
+    equation g(F) - p / lmbda), corotated through its polar rotation."""
     start = time.perf_counter()
-    raw = {"mesh": {"generator": "box", "size": [1.0, 1.0, 3.0], "cells": [2, 2, 4]},
-           "discretization": {"degree": 1, "quadrature_degree": 1},
-           "material": [{"region": "all", "law": "neo_hookean", "mu": 1e4, "lmbda": 5e4}],
+    mixed = formulation == "mixed"
+    raw = {"mesh": {"generator": "box", "size": [1.0, 1.0, 3.0], "cells": [1, 1, 3] if mixed else [2, 2, 4]},
+           "discretization": {"degree": 2 if mixed else 1, "quadrature_degree": 2 if mixed else 1,
+                              "formulation": formulation},
+           "material": [{"region": "all", "law": law, "mu": 1e4, "lmbda": 5e4}],
            "boundary": [{"on": "zmin", "type": "displacement", "value": [0.0, 0.0, 0.0]},
                         {"on": "zmax", "type": "traction", "value": [2e3, 0.0, 0.0]}]}
     setup = build(parse(raw))
