@@ -25,8 +25,11 @@ formulation can use it.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Iterable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -94,8 +97,10 @@ class Law(ABC):
 
     @property
     def incompressible(self) -> bool:
-        """True when kappa = inf: g(F) = 0 exactly, enforced by the mixed formulation's pressure."""
-        return math.isinf(self.bulk_penalty)
+        """True when kappa = inf: g(F) = 0 exactly, enforced by the mixed formulation's pressure. A bulk
+        parameter held as a UFL value (with_parameter_values) is finite: its numbers were checked."""
+        kappa = self.bulk_penalty
+        return not isinstance(kappa, Expr) and math.isinf(kappa)
 
     def require_compressible(self, what: str) -> None:
         """ValueError naming the bulk parameter when kappa = inf (``what`` needs a finite kappa)."""
@@ -167,3 +172,43 @@ class Law(ABC):
     def parameters(self) -> dict[str, float]:
         """Every parameter of the law, by name."""
         return {k: float(v) for k, v in vars(self).items()}
+
+
+def with_parameter_values(law: Law, values: Mapping[str, tuple[Expr, Iterable[float]]]) -> Law:
+    """The law with each scalar parameter ``name`` of ``values`` replaced by its UFL scalar (a fem.Constant, or a
+    DG0 Function for a parameter per cell) that holds the given numbers, so that ufl.derivative differentiates
+    the law's energy, stress and pressure equation with respect to it (e.g. dR/dmu of the residual,
+    model.solvers.adjoint.material_gradient).
+
+    The law's own validation (__post_init__) runs on the numbers: for each parameter and each of its distinct
+    numbers, the law rebuilt with that float (dataclasses.replace; the other replaced parameters at their first
+    number) must be valid, else its ParameterError. The copy returned holds the UFL values in place of the
+    floats (replace_fields: the fields are set on a shallow copy, which is not validated again). Every other
+    field (fibres a0, activation alpha, targets S, an eigen state) is the law's own. ValueError when a name is not
+    a float field of the law, or is its bulk parameter at inf (the incompressible limit has no derivative).
+    """
+    names = {f.name for f in dataclasses.fields(law)} if dataclasses.is_dataclass(law) else set()
+    numbers: dict[str, list[float]] = {}
+    for name, (_, given) in values.items():
+        if name not in names:
+            raise ValueError(f"{law.name}: no parameter {name!r} (parameters: {', '.join(sorted(law.parameters()))})")
+        current = getattr(law, name)
+        if isinstance(current, bool) or not isinstance(current, (int, float)):
+            raise ValueError(f"{law.name}: {name} = {current!r} is not a number")
+        if math.isinf(current):
+            raise ValueError(f"{law.name}: {name} = inf (incompressible) has no derivative")
+        numbers[name] = sorted(set(float(x) for x in given)) or [float(current)]
+    first = {name: given[0] for name, given in numbers.items()}
+    for name, given in numbers.items():
+        for number in given:
+            dataclasses.replace(law, **{**first, name: number})  # the law's validation on the numbers
+    return replace_fields(law, **{name: value for name, (value, _) in values.items()})
+
+
+def replace_fields(law: Law, **changes: Any) -> Law:
+    """A copy of the (valid) frozen dataclass law with ``changes`` set and not validated again: fields (alpha, a0,
+    S) and parameters held as UFL values (with_parameter_values), whose numbers the caller has checked."""
+    out = copy.copy(law)
+    for name, value in changes.items():
+        object.__setattr__(out, name, value)
+    return out

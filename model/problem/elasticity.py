@@ -73,6 +73,7 @@ from petsc4py import PETSc
 
 from forms import Law, law_fields
 from forms.kinematics import cauchy_stress, deformation_gradient, von_mises
+from forms.law import replace_fields
 from model import compat
 from model.domain import Domain
 from model.fields.eigen import EigenField
@@ -266,7 +267,7 @@ class ElasticityProblem:
         """psi(F; alpha = 0) of a law whose activation field alpha is set, else None (nothing to remove)."""
         if "alpha" not in law_fields(law) or getattr(law, "alpha", None) is None or not dataclasses.is_dataclass(law):
             return None
-        passive = dataclasses.replace(law, alpha=self._no_activation)
+        passive = replace_fields(law, alpha=self._no_activation)  # parameters may be UFL values (adjoint)
         return passive.energy(self.F, R) if self.p is None else passive.mixed_energy(self.F, self.p, R)
 
     def add_dirichlet(self, name: str, components: Sequence[int], values: Sequence[ValueSource],
