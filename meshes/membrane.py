@@ -141,12 +141,14 @@ def sphere_surface(radius: float = 1.0, size: float = 0.3) -> SurfaceMeshData:
 
 def disc_surface(radius: float = 1.0, size: float = 0.1) -> SurfaceMeshData:
     """The disc of ``radius`` about the origin in the plane z = 0, triangles of size <= ``size`` oriented along
-    +z; boundary ``rim``."""
+    +z, a node at the centre; boundary ``rim``."""
     a = positive_float("disc_surface", "radius", radius)
     lc = positive_float("disc_surface", "size", size)
     with gmsh_session({"Mesh.MeshSizeMax": lc, "Mesh.MeshSizeMin": 0.0}, name="disc_surface"):
-        gmsh.model.occ.addDisk(0.0, 0.0, 0.0, a, a)
+        disc = gmsh.model.occ.addDisk(0.0, 0.0, 0.0, a, a)
+        centre = gmsh.model.occ.addPoint(0.0, 0.0, 0.0)
         gmsh.model.occ.synchronize()
+        gmsh.model.mesh.embed(0, [centre], 2, disc)
         gmsh.model.mesh.generate(2)
         surfaces = [s for _, s in gmsh.model.getEntities(2)]
         rim = [abs(c) for _, c in gmsh.model.getBoundary([(2, s) for s in surfaces], combined=True, oriented=False)]
