@@ -8,6 +8,11 @@
 Each is a :class:`SurfaceMeshData` (the attributes of :class:`meshes.gingerbread.PlanarMeshData`, with 3D points),
 region ``membrane`` (tag 1), triangles oriented (right-handed vertex order) outward (spheres) or along +z (disc),
 held on one rank; ``model.domain.distribute.build_domain`` distributes it as a surface mesh (tdim 2, gdim 3).
+
+The inflation workflow of the thesis (ch. 3.3.3): ``close_with_base(data, deformed, fixed)`` closes an inflated
+patch with its flat rest shape (the base: the rest triangles reversed, its free nodes duplicated, the fixed
+nodes shared), and ``tetrahedralise(points, triangles, tags, names, size)`` fills a closed triangulated surface
+with tetrahedra (gmsh, the surface mesh kept as given): a :class:`meshes.data.MeshData` with region ``muscle``.
 """
 
 from __future__ import annotations
@@ -22,10 +27,11 @@ import numpy as np
 
 from meshes._gmsh import gmsh_session
 from meshes._validate import positive_float
+from meshes.data import MeshData
 from meshes.gingerbread import PlanarMeshData
 
-__all__ = ["SurfaceMeshData", "disc_surface", "orient_triangles", "sphere_octant",
-           "sphere_surface", "surface_areas"]
+__all__ = ["SurfaceMeshData", "close_with_base", "disc_surface", "orient_triangles", "sphere_octant", "sphere_surface",
+           "surface_areas", "tetrahedralise"]
 
 logger = logging.getLogger(__name__)
 
@@ -156,3 +162,64 @@ def disc_surface(radius: float = 1.0, size: float = 0.1) -> SurfaceMeshData:
     points[:, 2] = 0.0
     cells = orient_triangles(points, cells, np.array([0.0, 0.0, 1.0]))
     return _data(points, cells, edges)
+
+
+def close_with_base(data: SurfaceMeshData, deformed: np.ndarray, fixed: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closed surface of an inflated patch: (points, triangles, side) with side 1 for the patch (the
+    deformed positions ``deformed``, data's triangles) and 2 for the base (the rest triangles, reversed, on
+    copies of the free nodes at their rest positions; the ``fixed`` nodes, e.g. the clamped rim, are shared).
+    A patch oriented along its outward normal gives a closed surface oriented outward."""
+    deformed = np.asarray(deformed, dtype=np.float64)
+    if deformed.shape != data.points.shape:
+        raise ValueError(f"close_with_base: deformed has shape {deformed.shape}, expected {data.points.shape}")
+    n = len(data.points)
+    free = np.setdiff1d(np.arange(n), np.asarray(fixed, dtype=np.int64))
+    index = np.arange(n)
+    index[free] = n + np.arange(len(free))
+    points = np.vstack([deformed, data.points[free]])
+    base = index[data.cells][:, [0, 2, 1]]
+    triangles = np.vstack([data.cells, base])
+    side = np.concatenate([np.ones(len(data.cells), np.int32), np.full(len(base), 2, np.int32)])
+    return points, triangles, side
+
+
+def tetrahedralise(points: np.ndarray, triangles: np.ndarray, tags: np.ndarray, names: dict[str, int],
+                   size: float) -> MeshData:
+    """Tetrahedra (size <= ``size`` inside) filling the closed surface ``triangles``; the surface mesh is kept
+    (a gmsh discrete surface bounding a geo volume). Region ``muscle`` (1); every boundary triangle keeps its
+    tag (``names``: boundary name -> tag; a triangle may be repeated with another tag to be in two groups)."""
+    lc = positive_float("tetrahedralise", "size", size)
+    points = np.asarray(points, dtype=np.float64)
+    triangles = np.asarray(triangles, dtype=np.int64)
+    tags = np.asarray(tags, dtype=np.int32)
+    unique = np.unique(np.sort(triangles, axis=1), axis=0, return_index=True)[1]
+    surface = triangles[np.sort(unique)]
+    with gmsh_session({"Mesh.MeshSizeMax": lc, "Mesh.MeshSizeMin": 0.0}, name="tetrahedralise"):
+        gmsh.model.addDiscreteEntity(2, 1)
+        gmsh.model.mesh.addNodes(2, 1, np.arange(1, len(points) + 1), points.reshape(-1))
+        gmsh.model.mesh.addElementsByType(1, 2, [], (surface + 1).reshape(-1))
+        loop = gmsh.model.geo.addSurfaceLoop([1])
+        gmsh.model.geo.addVolume([loop])
+        gmsh.model.geo.synchronize()
+        gmsh.model.mesh.generate(3)
+        node_tags, coords, _ = gmsh.model.mesh.getNodes()
+        _, tet_nodes = gmsh.model.mesh.getElementsByType(4)
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    coords = np.asarray(coords, dtype=np.float64).reshape(-1, 3)
+    order = np.argsort(node_tags)
+    all_points = coords[order]  # node tag k + 1 at row k: the surface nodes keep their indices
+    if not np.array_equal(node_tags[order][: len(points)], np.arange(1, len(points) + 1)):
+        raise RuntimeError("tetrahedralise: gmsh renumbered the surface nodes")
+    tets = np.searchsorted(node_tags[order], np.asarray(tet_nodes, dtype=np.int64).reshape(-1, 4))
+    p = all_points[tets]
+    negative = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0])) < 0
+    tets[negative] = tets[negative][:, [0, 2, 1, 3]]
+    used = np.unique(np.concatenate([tets.reshape(-1), triangles.reshape(-1)]))
+    renumber = np.full(len(all_points), -1, dtype=np.int64)
+    renumber[used] = np.arange(len(used))
+    mesh = MeshData(all_points[used], renumber[tets], np.ones(len(tets), np.int32), renumber[triangles], tags,
+                    {"muscle": 1}, dict(names))
+    logger.info("tetrahedralise: %d tetrahedra, %d points from %d surface triangles", len(tets), len(used),
+                len(surface))
+    return mesh

@@ -164,3 +164,25 @@ def test_hencky_clamped_disc():
     expected = w0 / ref.coefficient * np.interp(np.hypot(X[:, 0], X[:, 1]), ref.rho, ref.omega)
     local = np.max(np.abs(w - expected)) if n else 0.0
     assert COMM.allreduce(local, op=MPI.MAX) < 0.02 * w0
+
+
+def test_inflation_workflow_patch_to_muscle():
+    """Thesis ch. 3.3.3: clamped disc inflated until V = target (stop criterion), closed with its base, filled
+    with tetrahedra whose volume equals the membrane's enclosed volume, and given a Laplace fibre field."""
+    from model.experiments.membrane import inflate_patch
+
+    target = 0.5
+    result = inflate_patch(NEO, target_volume=target, size=0.15, tet_size=0.15)
+    steps = result.steps
+    assert abs(steps[-1].volume - target) <= 1e-6 * target
+    growth = [s.volume for s in steps if s.volume < target]
+    assert len(growth) >= 3 and np.all(np.diff(growth) > 0)  # the volume grows with the pressure
+    msh = result.domain.mesh
+    assert (msh.topology.dim, msh.geometry.dim) == (3, 3)
+    volume = COMM.allreduce(fem.assemble_scalar(fem.form(1.0 * ufl.dx(domain=msh))), op=MPI.SUM)
+    assert volume == pytest.approx(result.problem.volume(), rel=1e-10)
+    cells = result.fibres.cells
+    a0 = result.fibres.function.x.array.reshape(-1, 3)[cells]
+    assert np.allclose(np.linalg.norm(a0, axis=1), 1.0)
+    mean_x = COMM.allreduce(a0[:, 0].sum(), op=MPI.SUM) / COMM.allreduce(len(a0), op=MPI.SUM)
+    assert mean_x > 0.7  # from the origin end (x < 0) to the insertion end (x > 0)
