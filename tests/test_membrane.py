@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import ufl
+from conftest import ROOT, environment, serial_only
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
@@ -186,3 +187,19 @@ def test_inflation_workflow_patch_to_muscle():
     assert np.allclose(np.linalg.norm(a0, axis=1), 1.0)
     mean_x = COMM.allreduce(a0[:, 0].sum(), op=MPI.SUM) / COMM.allreduce(len(a0), op=MPI.SUM)
     assert mean_x > 0.7  # from the origin end (x < 0) to the insertion end (x > 0)
+
+
+@serial_only
+def test_example_script() -> None:
+    """examples/membrane_balloon.py: the printed balloon errors < 1%, Hencky's error < 2%, the target volume."""
+    import re
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "examples/membrane_balloon.py", "--size", "0.2", "--stretch", "1.2",
+                           "--law", "stvk"], cwd=ROOT, env=environment(), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    errors = [float(line.split()[-1]) for line in proc.stdout.splitlines() if re.match(r"\s+1\.\d+\s", line)]
+    assert len(errors) == 8 and max(abs(e) for e in errors) < 0.01
+    assert abs(float(re.search(r"error (\S+)$", proc.stdout, re.M).group(1))) < 0.02
+    assert "inflation: V = 0.500000" in proc.stdout
