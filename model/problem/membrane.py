@@ -22,9 +22,10 @@ References (``balloon_pressure``, ``hencky``):
   membrane equations): centre deflection w0 = c(nu) a (p a / (E h))^(1/3). ``hencky`` integrates the
   axisymmetric equations N'' + 3 N'/r + E h p^2 / (8 N^2) = 0 (N the radial force per length, N'(0) = 0,
   (1 - nu) N(a) + a N'(a) = 0: no hoop strain at the clamped rim) by shooting on N(0), and
-  w0 = int_0^a p r / (2 N) dr. Hencky (1915, Z. Math. Phys. 63, 311) gives the series with b0 = 1.724 for
-  nu = 0.3, i.e. w0 = 0.662 a (p a / E h)^(1/3) (Timoshenko & Woinowsky-Krieger, Theory of Plates and Shells,
-  1959, sec. 97; Fichter 1997, NASA TP-3658, corrects the higher coefficients).
+  w0 = int_0^a p r / (2 N) dr. Hencky (1915, Z. Math. Phys. 63, 311) gives the series solution with b0 = 1.724
+  for nu = 0.3; its sum is w0 = 0.6534 a (p a / E h)^(1/3), what the shooting gives. The often quoted
+  0.662 (Timoshenko & Woinowsky-Krieger, Theory of Plates and Shells, 1959) carries Hencky's original higher
+  coefficients, corrected later (see Fichter 1997, NASA TP-3658).
 """
 
 from __future__ import annotations
