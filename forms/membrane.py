@@ -35,7 +35,9 @@ Pressure p on the deformed surface (normal n, area da, n da = F t1 x F t2 dA = d
   clamped disc on the plane z = 0 or a symmetry octant of a sphere) the load has the potential -p V(x),
   V = (1/3) int x . n da (divergence theorem, ``enclosed_volume``), whose first derivative is the follower
   work above and whose second derivative is symmetric. The problems here use the volume potential, so the
-  Newton Jacobian is the (symmetric) Hessian of Pi(x) = int w dA - p V(x).
+  Newton Jacobian is the (symmetric) Hessian of Pi(x) = int w dA - p V(x). On such surfaces the follower
+  form's tangent is the same matrix (tests/test_membrane.py checks both on a closed sphere); on a surface with
+  free (unsupported) edges the follower load has no potential and its tangent is not symmetric.
 """
 
 from __future__ import annotations

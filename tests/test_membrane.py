@@ -110,6 +110,16 @@ def test_volume_potential_gives_the_follower_pressure():
     else:
         exact = None
     assert problem.volume() == pytest.approx(COMM.bcast(exact), rel=1e-12)
+    # the Newton matrix of Pi = int w dA - p V is symmetric
+    problem.pressure.value = 0.3
+    J = fem_petsc.assemble_matrix(fem.form(ufl.derivative(problem.residual, problem.u, ufl.TrialFunction(problem.V))))
+    J.assemble()
+    assert J.isSymmetric(1e-10 * J.norm())
+    follower = ufl.derivative(pressure_virtual_work(problem.u, v, problem.frame, 1.0) * problem.dA, problem.u,
+                              ufl.TrialFunction(problem.V))
+    K = fem_petsc.assemble_matrix(fem.form(follower))
+    K.assemble()
+    assert K.isSymmetric(1e-10 * K.norm())  # on a closed surface the follower tangent is V's Hessian
 
 
 def _balloon_errors(law, size: float) -> tuple[np.ndarray, np.ndarray]:

@@ -40,7 +40,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms.membrane import MembraneLaw, enclosed_volume, tangent_frame
+from forms.membrane import MembraneLaw, enclosed_volume, membrane_deformation_gradient, tangent_frame
 from model import compat
 from model.domain.distribute import Domain
 
@@ -102,8 +102,6 @@ class MembraneProblem:
         self.frame = tangent_frame(msh, self.normal)
         self.dA = ufl.dx(domain=msh, metadata={"quadrature_degree": quadrature_degree})
         X = ufl.SpatialCoordinate(msh)
-        from forms.membrane import membrane_deformation_gradient
-
         self.F = membrane_deformation_gradient(self.u, self.frame)
         self.stretch_energy = law.energy(self.F) * self.dA
         self.volume_form = enclosed_volume(self.u, self.frame, X) * self.dA

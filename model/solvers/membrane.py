@@ -87,6 +87,7 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
     newton = membrane_newton(problem, options)
     steps: list[InflationStep] = []
     p = float(problem.pressure.value)
+    start = InflationStep(p, problem.volume(), problem.elastic_energy(), 0)
     try:
         for _ in range(max_steps):
             its = _solve_at(problem, newton, p, p + dp, cutbacks)
@@ -97,7 +98,7 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
         else:
             raise RuntimeError(f"membrane: volume {steps[-1].volume:.6g} < target {target_volume:.6g} after "
                                f"{max_steps} pressure steps (p = {p:.6g})")
-        below = steps[-2] if len(steps) > 1 else InflationStep(p - dp, problem.volume(), 0.0, 0)
+        below = steps[-2] if len(steps) > 1 else start
         above = steps[-1]
         for _ in range(30):
             if abs(above.volume - target_volume) <= tolerance * target_volume:
