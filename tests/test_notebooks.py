@@ -20,7 +20,7 @@ NOTEBOOKS = sorted(p for p in (ROOT / "notebooks").glob("*.py") if not p.name.st
 
 
 def test_notebooks_found() -> None:
-    assert {p.stem for p in NOTEBOOKS} >= {"trunk", "guided", "muscle_targets", "skinning"}
+    assert {p.stem for p in NOTEBOOKS} >= {"trunk", "guided", "muscle_targets", "skinning", "membrane"}
 
 
 @pytest.mark.parametrize("notebook", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])

@@ -115,7 +115,8 @@ def _quadratic_triangles(facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
 def build_domain(comm: MPI.Comm, data: MeshData | PlanarMeshData | None, root: int = 0) -> Domain:
     """Distribute a MeshData held on rank ``root`` (None elsewhere) into a Domain; quadratic cells
     (``data.nodes``) give a mesh with degree-2 (curved) geometry. A PlanarMeshData (triangles, edges as
-    facets) gives a plane mesh (gdim 2, tdim 2)."""
+    facets) gives a plane mesh (gdim 2, tdim 2); a meshes.membrane.SurfaceMeshData (class attribute gdim = 3)
+    a surface mesh of triangles in 3D (gdim 3, tdim 2)."""
     if comm.rank == root:
         assert data is not None
         cells, cell_codes, regions, rows = _combine(data.cells, data.cell_tags, data.region_names)
@@ -123,21 +124,22 @@ def build_domain(comm: MPI.Comm, data: MeshData | PlanarMeshData | None, root: i
         points = np.ascontiguousarray(data.points[:, :3], dtype=np.float64)
         degree = 1 if data.nodes is None else 2
         nvertices = data.cells.shape[1]
-        comm.bcast((regions, boundaries, degree, nvertices), root=root)
+        gdim = int(getattr(data, "gdim", 2 if nvertices == 3 else 3))
+        comm.bcast((regions, boundaries, degree, nvertices, gdim), root=root)
         # dolfinx's node order (the vertices stay first: tags and checks use cells' vertices)
         nodes = cells if degree == 1 else data.nodes[rows][:, compat.gmsh_node_order("tetrahedron", 10)]
         if degree == 2:
             facets = _quadratic_triangles(facets, data.nodes)
     else:
-        regions, boundaries, degree, nvertices = comm.bcast(None, root=root)
+        regions, boundaries, degree, nvertices, gdim = comm.bcast(None, root=root)
         cells = np.empty((0, nvertices), dtype=np.int64)
         nodes = np.empty((0, nvertices if degree == 1 else 10), dtype=np.int64)
         facets = np.empty((0, nvertices - 1 if degree == 1 else 6), dtype=np.int64)
         cell_codes = np.empty(0, dtype=np.int32)
         facet_codes = np.empty(0, dtype=np.int32)
         points = np.empty((0, 3), dtype=np.float64)
-    if nvertices == 3:  # plane triangles (meshes.gingerbread.PlanarMeshData)
-        msh = compat.create_mesh(comm, nodes, points, degree, cell="triangle", gdim=2)
+    if nvertices == 3:  # triangles: plane (PlanarMeshData) or a surface in 3D (SurfaceMeshData)
+        msh = compat.create_mesh(comm, nodes, points, degree, cell="triangle", gdim=gdim)
     else:
         msh = compat.create_mesh(comm, nodes, points, degree)
     tdim = msh.topology.dim

@@ -1,0 +1,197 @@
+"""A pressurised membrane on a triangle surface mesh in 3D (tdim 2, gdim 3), and its closed-form references.
+
+    problem = MembraneProblem(domain, law, orientation=radial_orientation(), fixed={"rim": (0, 1, 2)})
+    problem.pressure.value = 0.01      # then model.solvers.membrane.inflate / solve_membrane
+
+Unknown: the displacement u (P1, 3 components) of the surface; deformed position x = X + u. Energy
+
+    Pi(u) = int_S0 w(F) dA - p V(x),   V(x) = (1/3) int_S0 x . (F t1 x F t2) dA,
+
+w a forms.membrane law, F the 3x2 surface gradient in the rest frame (t1, t2, N) with N the unit normal oriented
+by ``orientation`` (a function of the cell centroids giving a direction per cell; N . direction > 0). V is the
+enclosed volume when the surface is closed, or closed by fixed plane pieces through the origin (on which
+x . n = 0): a sphere octant with its symmetry planes, a disc clamped on the plane z = 0. The residual
+dPi/du [v] contains the follower pressure work p int n . v da, and the Jacobian (ufl.derivative twice) is
+symmetric. Dirichlet data: ``fixed`` maps a boundary name to the displacement components held at zero.
+
+References (``balloon_pressure``, ``hencky``):
+
+* thin spherical balloon of radius R, equibiaxial stretch lambda = r/R: the energy balance
+  p 4 pi r^2 dr = d(4 pi R^2 w(lambda)) gives p = w'(lambda) / (R lambda^2);
+* Hencky's clamped circular membrane (radius a, plane-stress E, nu, thickness h, small rotations, Foppl's
+  membrane equations): centre deflection w0 = c(nu) a (p a / (E h))^(1/3). ``hencky`` integrates the
+  axisymmetric equations N'' + 3 N'/r + E h p^2 / (8 N^2) = 0 (N the radial force per length, N'(0) = 0,
+  (1 - nu) N(a) + a N'(a) = 0: no hoop strain at the clamped rim) by shooting on N(0), and
+  w0 = int_0^a p r / (2 N) dr. Hencky (1915, Z. Math. Phys. 63, 311) gives the series solution with b0 = 1.724
+  for nu = 0.3; its sum is w0 = 0.6534 a (p a / E h)^(1/3), what the shooting gives. The often quoted
+  0.662 (Timoshenko & Woinowsky-Krieger, Theory of Plates and Shells, 1959) carries Hencky's original higher
+  coefficients, corrected later (see Fichter 1997, NASA TP-3658).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms.membrane import MembraneLaw, enclosed_volume, membrane_deformation_gradient, tangent_frame
+from model import compat
+from model.domain.distribute import Domain
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Hencky", "MembraneProblem", "axis_orientation", "balloon_pressure", "hencky", "radial_orientation"]
+
+Orientation = Callable[[np.ndarray], np.ndarray]
+
+
+def radial_orientation(centre: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Orientation:
+    """Normals pointing away from ``centre`` (a closed convex surface about it, outward)."""
+    c = np.asarray(centre, dtype=np.float64)
+    return lambda centroids: centroids - c
+
+
+def axis_orientation(axis: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> Orientation:
+    """Normals along ``axis`` (a surface that is a graph over the plane normal to it, e.g. a disc: +z)."""
+    a = np.asarray(axis, dtype=np.float64)
+    return lambda centroids: np.broadcast_to(a, centroids.shape)
+
+
+def _normal_field(domain: Domain, orientation: Orientation) -> fem.Function:
+    """The unit normal of each local cell (DG0, 3 components), oriented so that N . orientation(centroid) > 0."""
+    msh = domain.mesh
+    W = compat.function_space(msh, "DG", 0, (3,))
+    normal = fem.Function(W, name="reference_normal")
+    x = msh.geometry.x[compat.geometry_dofs(msh)][:, :3, :3]
+    n = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    direction = np.asarray(orientation(x.mean(axis=1)), dtype=np.float64)
+    n[np.einsum("ij,ij->i", n, direction) < 0.0] *= -1.0
+    dofs = compat.cell_dofs(W.dofmap)[:, 0]
+    bs = W.dofmap.index_map_bs
+    for k in range(3):
+        normal.x.array[bs * dofs + k] = n[: len(dofs), k]
+    normal.x.scatter_forward()
+    return normal
+
+
+class MembraneProblem:
+    """The membrane energy Pi(u) = int w(F) dA - p V(x) on ``domain`` (module docstring).
+
+    Attributes: ``u`` (displacement), ``pressure`` (fem.Constant), ``energy`` (the UFL form Pi), ``residual``
+    (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0).
+    """
+
+    def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
+                 fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2) -> None:
+        msh = domain.mesh
+        if msh.topology.dim != 2 or msh.geometry.dim != 3:
+            raise ValueError(f"membrane: needs a surface mesh (tdim 2, gdim 3), got tdim {msh.topology.dim}, "
+                             f"gdim {msh.geometry.dim}")
+        self.domain, self.law = domain, law
+        self.V = compat.function_space(msh, "Lagrange", 1, (3,))
+        self.u = fem.Function(self.V, name="displacement")
+        self.pressure = fem.Constant(msh, PETSc.ScalarType(0.0))
+        self.normal = _normal_field(domain, orientation)
+        self.frame = tangent_frame(msh, self.normal)
+        self.dA = ufl.dx(domain=msh, metadata={"quadrature_degree": quadrature_degree})
+        X = ufl.SpatialCoordinate(msh)
+        self.F = membrane_deformation_gradient(self.u, self.frame)
+        self.stretch_energy = law.energy(self.F) * self.dA
+        self.volume_form = enclosed_volume(self.u, self.frame, X) * self.dA
+        self.energy = self.stretch_energy - self.pressure * self.volume_form
+        self.residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
+        self.bcs = []
+        for name, components in (fixed or {}).items():
+            error = domain.boundary_error(name)
+            if error is not None:
+                raise ValueError(f"membrane: fixed: {error}")
+            facets = domain.boundary_facets(name)
+            for k in components:
+                sub = self.V.sub(int(k))
+                dofs = fem.locate_dofs_topological(sub, 1, facets)
+                self.bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, sub))
+        self._volume = fem.form(self.volume_form)
+        self._area = fem.form(fem.Constant(msh, PETSc.ScalarType(1.0)) * self.dA)
+        self._stretch = fem.form(self.stretch_energy)
+
+    def _sum(self, form: fem.Form) -> float:
+        return float(self.domain.mesh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
+
+    def volume(self) -> float:
+        """V(x) at the current u (collective)."""
+        return self._sum(self._volume)
+
+    def reference_area(self) -> float:
+        """The rest surface's area (collective)."""
+        return self._sum(self._area)
+
+    def elastic_energy(self) -> float:
+        """int w(F) dA at the current u (collective)."""
+        return self._sum(self._stretch)
+
+    def max_component(self, k: int) -> float:
+        """max over the nodes of u_k (collective)."""
+        bs = self.V.dofmap.index_map_bs
+        n = self.V.dofmap.index_map.size_local
+        local = self.u.x.array[: n * bs].reshape(-1, bs)[:, k]
+        return float(self.domain.mesh.comm.allreduce(local.max() if len(local) else -np.inf, op=MPI.MAX))
+
+
+def balloon_pressure(law: MembraneLaw, radius: float, stretch: float | np.ndarray) -> np.ndarray:
+    """p(lambda) = w'(lambda) / (R lambda^2) of a thin spherical balloon of ``radius`` (module docstring)."""
+    lam = np.asarray(stretch, dtype=np.float64)
+    dw = np.vectorize(lambda s: law.equibiaxial(float(s))[1])(lam)
+    return dw / (radius * lam**2)
+
+
+@dataclass(frozen=True)
+class Hencky:
+    """Hencky's clamped membrane in dimensionless form: N(r) = s(r/a) (E h p^2 a^2)^(1/3),
+    w(r) = a (p a / (E h))^(1/3) omega(r/a); ``coefficient`` = omega(0) (0.662 for nu = 0.3), ``b0`` = 4 s(0)
+    (Hencky's 1.724 for nu = 0.3); ``rho``, ``omega``: the profile on [0, 1]."""
+
+    nu: float
+    b0: float
+    coefficient: float
+    rho: np.ndarray
+    omega: np.ndarray
+
+    def centre_deflection(self, radius: float, pressure: float, young: float, thickness: float) -> float:
+        return self.coefficient * radius * (pressure * radius / (young * thickness)) ** (1.0 / 3.0)
+
+
+def hencky(nu: float) -> Hencky:
+    """Solve the dimensionless Foppl-Hencky equations s'' + 3 s'/rho + 1/(8 s^2) = 0, s'(0) = 0,
+    (1 - nu) s(1) + s'(1) = 0 by shooting on s(0), then omega(rho) = int_rho^1 t / (2 s(t)) dt."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    rho0 = 1e-6
+
+    def shoot(s0: float, dense: bool = False):
+        s2 = -1.0 / (64.0 * s0**2)  # s = s0 + s2 rho^2 near the centre (regular solution)
+
+        def rhs(r, y):  # y = (s, s', w-integral)
+            return [y[1], -3.0 * y[1] / r - 1.0 / (8.0 * y[0] ** 2), -r / (2.0 * y[0])]
+
+        return solve_ivp(rhs, (rho0, 1.0), [s0 + s2 * rho0**2, 2.0 * s2 * rho0, 0.0], rtol=1e-12, atol=1e-14,
+                         dense_output=dense, method="DOP853")
+
+    def mismatch(s0: float) -> float:
+        sol = shoot(s0)
+        s, ds = sol.y[0, -1], sol.y[1, -1]
+        return (1.0 - nu) * s + ds
+
+    s0 = brentq(mismatch, 0.2, 2.0, xtol=1e-14)
+    sol = shoot(s0, dense=True)
+    rho = np.linspace(rho0, 1.0, 201)
+    integral = sol.sol(rho)[2]  # -int_0^rho t/(2 s) dt
+    omega = integral - integral[-1]
+    return Hencky(nu, 4.0 * s0, float(omega[0]), rho, omega)
