@@ -72,7 +72,7 @@ def two_muscles(cells: tuple[int, int, int] = (2, 2, 6)):
         upper = data.points[data.cells].mean(axis=1)[:, 2] > 0.02
         data = dataclasses.replace(data, cell_tags=np.where(upper, 2, 1).astype(np.int32),
                                    region_names={"lower": 1, "upper": 2})
-    domain = build_domain(comm, data)
+    domain = build_domain(comm, data, facet_ghosts=True)  # the per-cell smoothing integrates over facets (dS)
     alpha = fem.Function(compat.function_space(domain.mesh, "DG", 0), name="activation")
     fibres = FibreField(domain).constant([0, 0, 0], [0, 0, 1]).function
     law = dataclasses.replace(forms.make_law("muscle", c1=5e4, K=1e6, sigma_max=3e5), a0=fibres, alpha=alpha)

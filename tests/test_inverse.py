@@ -47,7 +47,7 @@ def test_smoothing_regulariser_is_the_jump_penalty_over_interior_facets() -> Non
     hexahedron's diagonal as diameter d = sqrt(3) / 2), alpha = 1 for x < 1/2 and 0 beyond jumps by 1 on the plane
     x = 1/2 only: R = 1 / (2 d). A constant has R = 0. On two ranks the plane crosses the rank border."""
     data = meshes.box(size=(1.0, 1.0, 1.0), cells=(2, 2, 2)) if MPI.COMM_WORLD.rank == 0 else None
-    msh = build_domain(MPI.COMM_WORLD, data).mesh
+    msh = build_domain(MPI.COMM_WORLD, data, facet_ghosts=True).mesh
     alpha = fem.Function(compat.function_space(msh, "DG", 0))
     alpha.interpolate(lambda x: (x[0] < 0.5).astype(float))
     R = objective_value(smoothing_regulariser(alpha), MPI.COMM_WORLD)

@@ -111,9 +111,10 @@ def _quadratic_triangles(facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     return np.column_stack([facets, mid])[:, compat.gmsh_node_order("triangle", 6)]
 
 
-def build_domain(comm: MPI.Comm, data: MeshData | None, root: int = 0) -> Domain:
+def build_domain(comm: MPI.Comm, data: MeshData | None, root: int = 0, facet_ghosts: bool = False) -> Domain:
     """Distribute a MeshData held on rank ``root`` (None elsewhere) into a Domain; quadratic cells
-    (``data.nodes``) give a mesh with degree-2 (curved) geometry."""
+    (``data.nodes``) give a mesh with degree-2 (curved) geometry. ``facet_ghosts``: the cells across the
+    rank border are ghosts on both dolfinx releases (compat.create_mesh), for interior-facet integrals."""
     if comm.rank == root:
         assert data is not None
         cells, cell_codes, regions, rows = _combine(data.cells, data.cell_tags, data.region_names)
@@ -133,7 +134,7 @@ def build_domain(comm: MPI.Comm, data: MeshData | None, root: int = 0) -> Domain
         cell_codes = np.empty(0, dtype=np.int32)
         facet_codes = np.empty(0, dtype=np.int32)
         points = np.empty((0, 3), dtype=np.float64)
-    msh = compat.create_mesh(comm, nodes, points, degree)
+    msh = compat.create_mesh(comm, nodes, points, degree, facet_ghosts=facet_ghosts)
     tdim = msh.topology.dim
     ct = compat.meshtags_from_input(msh, tdim, nodes, cell_codes)
     ct.name = "regions"

@@ -29,8 +29,8 @@ quasi-Newton) on a distributed PETSc Vec of the owned dofs: on several ranks eac
 unknowns, TAO's vector operations (dot products, norms, the projection onto the bounds) reduce over the
 communicator, so no rank gathers the whole vector (scipy would need every rank to hold all unknowns, and the
 gradient gathered and its iterates broadcast by hand). The interior-facet integral needs the cells across
-the rank border as ghosts (dolfinx 0.5's default, ``ghost_mode="shared_facet"``); a mesh without ghost cells
-on several ranks is refused.
+the rank border as ghosts (GhostMode.shared_facet: dolfinx 0.5's default; on 0.9
+``build_domain(..., facet_ghosts=True)``); a mesh without ghost cells on several ranks is refused.
 """
 
 from __future__ import annotations
