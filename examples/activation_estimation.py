@@ -48,7 +48,7 @@ OPTIONS = {"snes_rtol": 1e-12, "snes_atol": 1e-11, "snes_stol": 0.0, "snes_max_i
 
 
 HIDDEN_ARM = (0.7, 0.3)
-#: the per-cell and arm cases: full Newton steps (bt on the potential fails on a start already converged to round-off,
+#: every estimation here: full Newton steps (bt on the potential fails on a start already converged to round-off,
 #: as TAO's evaluations near the optimum are); the estimate's own step halving globalises
 OPTIONS_ESTIMATE = {**OPTIONS, "snes_linesearch_type": "basic"}
 #: the smoothing weight without noise, and with 1 % noise (a scan at 1 %: the per-cell L2 error is 0.11, 0.062,
@@ -102,7 +102,7 @@ def recover(noise: float, keep: dict | None = None):
     times noise_field); then estimation from 0.5 in both regions, on the same mesh."""
     problem, alpha, regions = two_muscles()
     set_regions(alpha, regions, HIDDEN)
-    solver = NewtonSolver(problem, options=OPTIONS)
+    solver = NewtonSolver(problem, options=OPTIONS_ESTIMATE)
     assert step_loads(solver, 2)
     u = problem.displacement()
     target = fem.Function(u.function_space)

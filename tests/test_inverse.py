@@ -96,7 +96,7 @@ def test_gradient_of_misfit_plus_smoothing_passes_the_taylor_test() -> None:
 
 
 def test_hidden_per_cell_activations_are_recovered_with_smoothing() -> None:
-    """No noise, beta = 1e-4, 100 BLMVM iterations from 0.5 everywhere (192 cells): measured L2 (volume RMS)
+    """No noise, beta = 1e-4, 100 BLMVM iterations from 0.5 everywhere (144 cells): measured L2 (volume RMS)
     error 0.19 -> 0.021, max 0.29 -> 0.080, region means within 3.2e-3."""
     r = example.recover_cells(0.0)
     e = r["estimate"]
