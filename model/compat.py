@@ -137,17 +137,23 @@ def cell_name(msh: dmesh.Mesh) -> str:
 # --- meshes and tags ----------------------------------------------------------------------------------
 
 def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 1,
-                cell: str = "tetrahedron", gdim: int = 3) -> dmesh.Mesh:
+                cell: str = "tetrahedron", gdim: int = 3, facet_ghosts: bool = False) -> dmesh.Mesh:
     """A tetrahedral mesh with Lagrange geometry of ``degree`` (cells in dolfinx's node order);
     every rank but the one holding the data passes empty arrays. ``cell="triangle"``: a surface
     (manifold) mesh of triangles in 3D (gdim 3, tdim 2); with ``gdim=2`` a plane triangle mesh (the
-    first two columns of ``points``)."""
+    first two columns of ``points``). ``facet_ghosts``: the cells across the rank border are ghosts
+    (GhostMode.shared_facet: interior-facet integrals, dS, need them there); dolfinx 0.5 ghosts them
+    always (its default), 0.9 only when asked (its default is GhostMode.none)."""
     points = np.asarray(points, dtype=np.float64)[:, :gdim]
     if LEGACY:
         domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.Cell(cell, geometric_dimension=gdim), degree, dim=gdim))
     else:
         domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, degree, shape=(gdim,)))
-    return dmesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), np.ascontiguousarray(points), domain)
+    cells, points = np.asarray(cells, dtype=np.int64), np.ascontiguousarray(points)
+    if facet_ghosts and not LEGACY and comm.size > 1:
+        partitioner = dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet)
+        return dmesh.create_mesh(comm, cells, points, domain, partitioner=partitioner)
+    return dmesh.create_mesh(comm, cells, points, domain)
 
 
 def gmsh_node_order(cell: str, num_nodes: int) -> np.ndarray:

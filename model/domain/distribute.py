@@ -112,11 +112,13 @@ def _quadratic_triangles(facets: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     return np.column_stack([facets, mid])[:, compat.gmsh_node_order("triangle", 6)]
 
 
-def build_domain(comm: MPI.Comm, data: MeshData | PlanarMeshData | None, root: int = 0) -> Domain:
+def build_domain(comm: MPI.Comm, data: MeshData | PlanarMeshData | None, root: int = 0,
+                 facet_ghosts: bool = False) -> Domain:
     """Distribute a MeshData held on rank ``root`` (None elsewhere) into a Domain; quadratic cells
     (``data.nodes``) give a mesh with degree-2 (curved) geometry. A PlanarMeshData (triangles, edges as
     facets) gives a plane mesh (gdim 2, tdim 2); a meshes.membrane.SurfaceMeshData (class attribute gdim = 3)
-    a surface mesh of triangles in 3D (gdim 3, tdim 2)."""
+    a surface mesh of triangles in 3D (gdim 3, tdim 2). ``facet_ghosts``: the cells across the rank border
+    are ghosts on both dolfinx releases (compat.create_mesh), for interior-facet integrals."""
     if comm.rank == root:
         assert data is not None
         cells, cell_codes, regions, rows = _combine(data.cells, data.cell_tags, data.region_names)
@@ -139,9 +141,9 @@ def build_domain(comm: MPI.Comm, data: MeshData | PlanarMeshData | None, root: i
         facet_codes = np.empty(0, dtype=np.int32)
         points = np.empty((0, 3), dtype=np.float64)
     if nvertices == 3:  # triangles: plane (PlanarMeshData) or a surface in 3D (SurfaceMeshData)
-        msh = compat.create_mesh(comm, nodes, points, degree, cell="triangle", gdim=gdim)
+        msh = compat.create_mesh(comm, nodes, points, degree, cell="triangle", gdim=gdim, facet_ghosts=facet_ghosts)
     else:
-        msh = compat.create_mesh(comm, nodes, points, degree)
+        msh = compat.create_mesh(comm, nodes, points, degree, facet_ghosts=facet_ghosts)
     tdim = msh.topology.dim
     ct = compat.meshtags_from_input(msh, tdim, nodes, cell_codes)
     ct.name = "regions"
