@@ -210,6 +210,10 @@ def geometry_dofs(msh: dmesh.Mesh) -> np.ndarray:
 def entity_geometry(msh: dmesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
     """Indices into ``msh.geometry.x`` of the nodes of each entity of dimension ``dim``: (len(entities), nodes)."""
     entities = np.asarray(entities, dtype=np.int32)
+    if len(entities) == 0:  # dolfinx 0.9 divides by zero on an empty list (SIGFPE)
+        d = geometry_degree(msh)
+        nodes = {0: 1, 1: d + 1, 2: (d + 1) * (d + 2) // 2, 3: (d + 1) * (d + 2) * (d + 3) // 6}[dim]
+        return np.empty((0, nodes), dtype=np.int32)
     if LEGACY:
         from dolfinx.cpp.mesh import entities_to_geometry
 

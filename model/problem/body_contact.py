@@ -157,7 +157,8 @@ class BodyContact:
         cell_nodes = compat.geometry_dofs(msh)[:, :4]
         cell_blocks = compat.cell_dofs(V.dofmap)[:, :4]
         geometry_to_dof[cell_nodes.ravel()] = cell_blocks.ravel()
-        nodes = compat.entity_geometry(msh, fdim, facets).reshape(len(facets), -1)[:, :3]
+        nodes = np.asarray(compat.entity_geometry(msh, fdim, facets), dtype=np.int64)
+        nodes = nodes.reshape(len(facets), -1)[:, :3] if len(facets) else np.empty((0, 3), dtype=np.int64)
         f2c = msh.topology.connectivity(fdim, msh.topology.dim)
         cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
         x = msh.geometry.x
@@ -190,7 +191,8 @@ class BodyContact:
         from scipy.spatial import cKDTree
 
         current = self.problem.solution.x.array
-        if self._stamp is not None and np.array_equal(self._stamp, current):
+        changed = self._stamp is None or not np.array_equal(self._stamp, current)
+        if not self.comm.allreduce(changed, op=MPI.LOR):  # decided together: the pairing is collective
             return
         X_tri, x_tri, g_tri = self._gather_master()
         u = current.reshape(-1, self.bs)
@@ -254,8 +256,9 @@ class BodyContact:
         Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         out = self.Pi.createVecRight()
         self.Pi.multTranspose(Rz, out)
-        with b.localForm() as local, out.localForm() as extra:
-            local.array[: len(extra.array_r)] += extra.array_r
+        extra = out.array_r  # the owned entries (a vector without ghosts has no local form under MPI)
+        with b.localForm() as local:
+            local.array[: len(extra)] += extra
         Rz.destroy()
         out.destroy()
 
