@@ -40,7 +40,7 @@ demo: setup
 	@echo "results and PNG in results/demo (deformed.png, results.xdmf, step_*.vtu, summary.json)"
 
 test-serial: setup
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n 2 tests
 
 test-mpi: setup
 	$(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider tests

@@ -71,8 +71,12 @@ def write_toml(raw: dict[str, Any], path: Path) -> Path:
 
 
 def environment() -> dict[str, str]:
-    """This environment for a child run: the project on PYTHONPATH, one thread, mpirun allowed as root."""
-    env = dict(os.environ)
+    """This environment for a child run: the project on PYTHONPATH, one thread, mpirun allowed as root.
+
+    Without the variables an MPI initialisation leaves in the environment (OMPI_*, PMIX_*, OPAL_*, PRTE_*):
+    a pytest-xdist worker inherits them from the controller, whose conftest initialised MPI, and an mpirun
+    started with them fails at once, silently."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "OPAL_", "PRTE_"))}
     env.update(PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
                OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1")

@@ -7,17 +7,16 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import subprocess
 import sys
 from pathlib import Path
 
-from conftest import ROOT, serial_only
+from conftest import ROOT, environment, serial_only
 
 
 @serial_only
 def test_scaling_benchmark_smallest_sizes(tmp_path: Path) -> None:
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    env = {**environment(), "OPENBLAS_NUM_THREADS": "1"}
     done = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "scaling.py"), "--cases", "p2_compressible,th_0.4999",
          "--bar-sizes", "2", "3", "--ranks", "1", "2", "--limit", "300", "--out", str(tmp_path)],

@@ -30,10 +30,9 @@ from mpi4py import MPI
 from model import compat
 from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
 from model.output.writer import XdmfSeries
-from tests.conftest import EXAMPLES, ROOT, serial_only, write_toml
+from tests.conftest import EXAMPLES, ROOT, environment, serial_only, write_toml
 
-ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-       "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+ENV = {**environment(), "PYTHONPATH": str(ROOT), "OMPI_MCA_rmaps_base_oversubscribe": "1"}
 
 
 def _uniaxial(steps: int) -> dict[str, Any]:
