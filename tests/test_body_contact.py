@@ -27,7 +27,8 @@ LAW = forms.make_law("neo_hookean", E=1e4, nu=0.3)
 OPTIONS = {"snes_rtol": 1e-11, "snes_atol": 1e-10}
 
 
-def stacked(k: float, kind: str = "contact", pressure: float = P) -> tuple[ElasticityProblem, BodyContact]:
+def stacked(k: float, kind: str = "contact", pressure: float = P,
+            augmented: bool = False) -> tuple[ElasticityProblem, BodyContact]:
     comm = MPI.COMM_WORLD
     data = None
     if comm.rank == 0:
@@ -39,7 +40,8 @@ def stacked(k: float, kind: str = "contact", pressure: float = P) -> tuple[Elast
         problem.add_dirichlet(f"{body}_xmin", (0,), [0.0])
         problem.add_dirichlet(f"{body}_ymin", (1,), [0.0])
     problem.add_traction("upper_zmax", [0.0, 0.0, -pressure])
-    return problem, BodyContact(problem, "upper_zmin", "lower_zmax", k, kind=kind)
+    return problem, BodyContact(problem, "upper_zmin", "lower_zmax", k, kind=kind, augmented=augmented,
+                                tolerance=1e-10)
 
 
 def one_body(pressure: float = P) -> ElasticityProblem:
@@ -84,6 +86,25 @@ def test_stacked_blocks_against_the_closed_form_and_one_body() -> None:
     assert errors[0] == pytest.approx(P / 1e6, rel=1e-8)
     assert errors[0] / errors[1] == pytest.approx(10.0, rel=1e-6)
     assert errors[1] / errors[2] == pytest.approx(10.0, rel=1e-5)
+
+
+def test_augmented_lagrangian_reaches_the_one_body_answer() -> None:
+    """Uzawa updates of the nodal contact pressure (k = 1e6, where the penalty alone is 2e-4 off): the penetration
+    falls below the tolerance (1e-10 x size) and the answer is the one-body one to that, in a few rounds."""
+    from model.solvers.contact import UzawaSolver
+
+    reference = one_body()
+    solve(reference)
+    problem, contact = stacked(1e6, augmented=True)
+    solver = UzawaSolver(NewtonSolver(problem, options=OPTIONS), [contact])
+    assert step_loads(solver, 2).completed
+    report = contact.report()
+    assert report["force"][2] == pytest.approx(P, rel=1e-9)
+    assert report["max_penetration"] < 1e-10 * contact.size
+    assert abs(top_displacement(problem) - top_displacement(reference)) < 1e-9
+    assert 2 <= solver.uzawa_iterations <= 10, solver.history
+    assert float(MPI.COMM_WORLD.allreduce(contact.multiplier.x.array.max(initial=0.0), op=MPI.MAX)) \
+        == pytest.approx(P, rel=1e-6)  # the multiplier is the contact pressure
 
 
 def test_sliding_holds_a_block_pulled_away() -> None:

@@ -9,6 +9,9 @@ surface (a triangle T of it, barycentric coordinates b_j, x* = sum_j b_j x_j), w
 and the energy, integrated over the slave surface with the nodal ("vertex") rule,
 
     contact:  Pi_c = int_slave (k/2) min(g, 0)^2 dA      (frictionless, non-penetration g >= 0),
+    augmented: Pi_c = int_slave (k/2) min(g - lambda/k, 0)^2 - lambda^2/(2k) dA, the nodal multiplier lambda >= 0
+              (the contact pressure) updated by model.solvers.contact.UzawaSolver, lambda <- max(lambda - k g, 0),
+              until max |min(g, lambda/k)| <= tolerance x the body's size (as for rigid obstacles),
     sliding:  Pi_c = int_slave (k/2) g^2 dA              (the thesis' zero-length normal springs: the slave
                                                            surface stays on the master surface, free to slide).
 
@@ -40,7 +43,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms.obstacles import penalty_energy, sliding_energy
+from forms.obstacles import augmented_lagrangian_energy, contact_pressure, penalty_energy, sliding_energy
 from model import compat
 from model.problem.bones import surface_measure
 from model.problem.elasticity import ElasticityProblem
@@ -93,11 +96,19 @@ class BodyContact:
     coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices)."""
 
     def __init__(self, problem: ElasticityProblem, slave: str, master: str, k: float, kind: str = "contact",
-                 neighbours: int = 8, name: str | None = None) -> None:
+                 neighbours: int = 8, name: str | None = None, augmented: bool = False, tolerance: float = 1e-8,
+                 max_uzawa: int = 25) -> None:
         if kind not in KINDS:
             raise ValueError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
         if not (np.isfinite(k) and k > 0):
             raise ValueError(f"k: {k!r} must be a finite number > 0")
+        if augmented and kind != "contact":
+            raise ValueError("augmented: Uzawa updates are for kind = 'contact' (sliding holds both ways)")
+        if not (np.isfinite(tolerance) and tolerance > 0):
+            raise ValueError(f"tolerance: {tolerance!r} must be a finite number > 0")
+        if isinstance(max_uzawa, bool) or not isinstance(max_uzawa, int) or max_uzawa < 1:
+            raise ValueError(f"max_uzawa: {max_uzawa!r} must be an integer >= 1")
+        self.augmented, self.tolerance, self.max_uzawa = augmented, float(tolerance), max_uzawa
         if problem.formulation != "displacement" or problem.degree != 1:
             raise ValueError("contact between bodies: the P1 displacement formulation only (nodal pairing)")
         for surface in (slave, master):
@@ -128,12 +139,27 @@ class BodyContact:
         self.gap = ufl.dot(self.normal, X + u - self.X_star - self.z)
         ds = surface_measure(problem, slave, "vertex")
         self._ds = ds
-        psi = penalty_energy(self.gap, self.k) if kind == "contact" else sliding_energy(self.gap, self.k)
+        # the augmented Lagrangian's multiplier: the contact pressure at the nodes (scalar P1), its dof of each
+        # slave node from the collapsed first component of V (dof q of the scalar space is V's block map[q] // bs)
+        Q, to_v = V.sub(0).collapse()
+        self.multiplier = fem.Function(Q, name="contact_pressure")
+        block_of_q = np.asarray(to_v, dtype=np.int64) // self.bs
+        q_of_block = np.full(len(self.reference), -1, dtype=np.int64)
+        q_of_block[block_of_q] = np.arange(len(block_of_q))
+        self.slave_q = q_of_block[self.slave_blocks]
+        from model.problem.bones import body_size
+
+        self.size = body_size(problem)
+        if kind == "sliding":
+            psi = sliding_energy(self.gap, self.k)
+        elif augmented:
+            psi = augmented_lagrangian_energy(self.gap, self.multiplier, self.k)
+        else:
+            psi = penalty_energy(self.gap, self.k)
         energy = psi * ds
         v, w = ufl.TestFunction(V), ufl.TrialFunction(V)
         dz = ufl.derivative(energy, self.z, v)
-        pressure = -self.k * ufl.conditional(ufl.le(self.gap, 0.0), self.gap, 0.0) if kind == "contact" \
-            else -self.k * self.gap
+        pressure = contact_pressure(self.gap, self.k, self.multiplier) if kind == "contact" else -self.k * self.gap
         # compiled on first use, after the problem's own forms: compiling a form here, before the problem adds
         # this energy with a new TestFunction, gave that test function another hash than the problem's earlier
         # ones on dolfinx 0.5 ("Found different Arguments with same number and part")
@@ -300,20 +326,45 @@ class BodyContact:
                 A.setValues(np.array([row], dtype=PETSc.IntType), cols, values, addv=PETSc.InsertMode.ADD_VALUES)
         C.destroy()
 
+    # --- the augmented Lagrangian (model.solvers.contact.UzawaSolver drives it) -----------------------------
+    def nodal_gaps(self) -> np.ndarray:
+        """g at the owned slave nodes, at the current solution (paired again if it changed). Collective."""
+        self.problem.update_state()
+        u = self.problem.solution.x.array.reshape(-1, self.bs)
+        slave = self.slave_blocks
+        return np.einsum("ij,ij->i", self.normal.x.array.reshape(-1, self.bs)[slave],
+                         self.reference[slave] + u[slave] - self.X_star.x.array.reshape(-1, self.bs)[slave]
+                         - self.z.x.array.reshape(-1, self.bs)[slave])
+
+    @property
+    def absolute_tolerance(self) -> float:
+        """The largest |min(g, lambda/k)| accepted: ``tolerance`` times the body's bounding-box diagonal."""
+        return self.tolerance * self.size
+
+    def uzawa_residual(self) -> float:
+        """max_i |min(g_i, lambda_i / k)| over the slave nodes (all ranks): 0 at the exact solution."""
+        lam = self.multiplier.x.array[self.slave_q]
+        local = np.abs(np.minimum(self.nodal_gaps(), lam / float(self.k.value)))
+        return float(self.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX))
+
+    def update_multiplier(self) -> None:
+        """lambda_i <- max(lambda_i - k g_i, 0) at the slave nodes (Uzawa)."""
+        gap = self.nodal_gaps()
+        lam = self.multiplier.x.array
+        lam[self.slave_q] = np.maximum(lam[self.slave_q] - float(self.k.value) * gap, 0.0)
+        self.multiplier.x.scatter_forward()
+
     # --- report -------------------------------------------------------------------------------------------
     def report(self) -> dict[str, Any]:
         """max_penetration (max(0, -min g) over the slave nodes), max_gap (max(0, max g)), force on the slave body
         (int p n dA, p = -k min(g, 0); sliding: p = -k g), active_points (slave nodes with g < 0), the same on
         every rank."""
-        self.problem.update_state()
-        u = self.problem.solution.x.array.reshape(-1, self.bs)
-        slave = self.slave_blocks
-        gap = np.einsum("ij,ij->i", self.normal.x.array.reshape(-1, self.bs)[slave],
-                        self.reference[slave] + u[slave] - self.X_star.x.array.reshape(-1, self.bs)[slave]
-                        - self.z.x.array.reshape(-1, self.bs)[slave])
+        gap = self.nodal_gaps()
         low = self.comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)
         high = self.comm.allreduce(float(gap.max(initial=-np.inf)), op=MPI.MAX)
-        active = self.comm.allreduce(int(np.sum(gap < 0.0)), op=MPI.SUM)
+        pressed = gap < 0.0 if not self.augmented else \
+            contact_pressure(gap, self.k.value, self.multiplier.x.array[self.slave_q]) > 0.0
+        active = self.comm.allreduce(int(np.sum(pressed)), op=MPI.SUM)
         force = [float(self.comm.allreduce(fem.assemble_scalar(self._form(f"force{i}")), op=MPI.SUM))
                  for i in range(3)]
         return {"pair": self.name, "kind": self.kind, "max_penetration": max(0.0, -low), "max_gap": max(0.0, high),
