@@ -164,9 +164,23 @@ class Law(ABC):
         piecewise curve of the law, or a rotation that is not unique; within a relative 1e-8.
 
         ``fields`` are numpy arrays per sample (S (N,3,3), a0 (N,3), s0 (N,3), alpha (N,)). Laws with
-        such points override this; psi and P are still defined there (verify avoids these samples when
-        it emits them, and leaves A out of a check there, with a count).
+        such points override this; psi is still defined there, and so is P except where ``stress_undefined``
+        says otherwise (verify avoids these samples when it emits them, and leaves A out of a check there,
+        with a count).
         """
+        return np.zeros(len(np.reshape(F, (-1, 3, 3))), dtype=bool)
+
+    def stress_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """(N,) bool: True where P = dpsi/dF itself does not exist at the numpy F (N,3,3).
+
+        For a law with the polar rotation (``needs_rotation``) these are the points where the rotation is not
+        unique (its ``tangent_undefined``): there psi = mu min_{R in SO(3)} ||M - R||^2 + ... has a kink
+        (with det M < 0, max_R tr(M^T R) = s1 + s2 - s3 and s2 - s3 is |x|-like at s2 = s3), so P is only
+        one of its one-sided derivatives. Nowhere for every other law: a fibre curve's breakpoints are C1
+        points of psi (P is continuous, only A jumps).
+        """
+        if self.needs_rotation:
+            return np.asarray(self.tangent_undefined(F, **fields), dtype=bool)
         return np.zeros(len(np.reshape(F, (-1, 3, 3))), dtype=bool)
 
     def parameters(self) -> dict[str, float]:

@@ -153,8 +153,9 @@ def test_tangent_undefined_samples_are_left_out_of_A_only(monkeypatch, tmp_path)
     report = check(data["F"], psi=data["psi"], P=data["P"], tangent=A, law="muscle", fields=fields,
                    labels=list(data["labels"]))
     assert report.ok, str(report)
-    assert dict(report.row("A").excluded) == {"tangent undefined there (a breakpoint of the law: "
-                                              "Law.tangent_undefined)": int(undefined.sum())}
+    assert dict(report.row("A").excluded) == {"tangent undefined there (a breakpoint of the law, or a polar "
+                                              "rotation that is not unique: Law.tangent_undefined)":
+                                              int(undefined.sum())}
     assert report.row("P").compared == 14
 
 
@@ -199,3 +200,75 @@ def test_field_values() -> None:
         parse_field("muscle", "a0=1,0")
     with pytest.raises(ValueError, match="S"):
         parse_field("shape_target", "S=1,2,3,4,5,6,7,8,9")
+
+
+def test_a_9x9_or_6x6_tangent_must_name_its_layout(tmp_path) -> None:
+    """An (N,9,9) tangent given without a layout was read as ijkl, i.e. as row-major vec(F): HOBAK's
+    column-major Hessian then failed at relative error ~1 with no word on why. Now it is refused, naming the
+    layouts of that shape, and passes when its layout is given."""
+    F, _ = deformation_samples(8, 3)
+    psi, P, A = neo_hookean(F)
+    H_col = np.transpose(A, (0, 2, 1, 4, 3)).reshape(-1, 9, 9)  # H[i+3j, k+3l] = A[i,j,k,l]
+    with pytest.raises(ValueError, match=r"shape \(8, 9, 9\).*hessian9-col.*hessian9-row"):
+        check(F, tangent=H_col, law="neo_hookean", params={"mu": MU, "lmbda": LMBDA})
+    with pytest.raises(ValueError, match=r"shape \(8, 6, 6\).*voigt-spatial.*abaqus-ddsdde.*voigt-material"):
+        check(F, tangent=np.zeros((8, 6, 6)), law="neo_hookean", params={"mu": MU, "lmbda": LMBDA})
+    assert check(F, tangent=H_col, law="neo_hookean", params={"mu": MU, "lmbda": LMBDA}, layout="hessian9-col").ok
+    path = tmp_path / "hobak.npz"
+    np.savez(path, F=F, A=H_col, material=np.array("neo_hookean"),
+             params_json=np.array(json.dumps({"mu": MU, "lmbda": LMBDA})))
+    with pytest.raises(ValueError, match=r"hobak.npz: tangent: shape \(8, 9, 9\).*--layout"):
+        check(str(path))
+    assert check(str(path), layout="hessian9-col").ok
+
+
+def _signed_polar(F: np.ndarray) -> np.ndarray:
+    """The rotation nearest to each F (numpy SVD, last column of U negated when det F < 0)."""
+    U, _, Vt = np.linalg.svd(F)
+    U[:, :, 2] *= np.sign(np.linalg.det(U @ Vt))[:, None]
+    return U @ Vt
+
+
+def test_rotation_law_stress_is_left_out_where_psi_has_a_kink() -> None:
+    """corotated (mu = 1, lmbda = 0): psi = min_R ||F - R||^2 = sum (s_i - 1)^2 with s3 negated at det F < 0.
+    Where det F < 0 and s2 = s3 the minimiser is not unique and psi has a kink (its one-sided derivatives
+    along Q1 diag(0, 1, 0) Q2 differ, computed here): P is compared nowhere there (any P passes, counted),
+    psi everywhere (3.53 at the issue's sample), P elsewhere against 2 mu (F - R) with numpy's SVD."""
+    from scipy.spatial.transform import Rotation
+
+    Q1, Q2 = Rotation.random(2, random_state=5).as_matrix()
+    kinks = np.array([Q1 @ np.diag([1.5, 0.8, -0.8]) @ Q2, np.diag([1.0, 1.0, -1.0])])
+    F = np.concatenate([deformation_samples(9, 2)[0], kinks])
+
+    def psi_numpy(M: np.ndarray) -> np.ndarray:
+        s = np.linalg.svd(M, compute_uv=False)
+        s[:, 2] *= np.sign(np.linalg.det(M))
+        return np.sum((s - 1.0) ** 2, axis=1)
+
+    h = 1e-6
+    D = Q1 @ np.diag([0.0, 1.0, 0.0]) @ Q2
+    right = (psi_numpy(kinks[:1] + h * D) - psi_numpy(kinks[:1])) / h
+    left = (psi_numpy(kinks[:1]) - psi_numpy(kinks[:1] - h * D)) / h
+    assert abs(right[0] - (-0.4)) < 1e-4 and abs(left[0] - 3.6) < 1e-4  # a kink: no derivative there
+    psi = psi_numpy(F)
+    assert abs(psi[-2] - 3.53) < 1e-13
+    P = 2.0 * (F - _signed_polar(F))
+    P[-2:] = 17.0  # anything: P does not exist there
+    report = check(F, psi=psi, P=P, law="corotated", params={"mu": 1.0, "lmbda": 0.0}, rtol=1e-9)
+    assert report.ok, str(report)
+    row = report.row("P")
+    assert row.compared == 9 and sum(count for _, count in row.excluded) == 2
+    assert "kink" in row.excluded[0][0] and report.row("psi").compared == 11
+    largest = int(np.argmax(np.linalg.norm(P[:9], axis=(1, 2))))
+    P[largest] *= 1.1
+    wrong = check(F, P=P, law="corotated", params={"mu": 1.0, "lmbda": 0.0})
+    assert not wrong.ok and wrong.row("P").worst_sample == largest
+
+
+def test_zero_is_not_a_constant_factor() -> None:
+    F, _ = deformation_samples(8, 4)
+    psi, P, _ = neo_hookean(F)
+    report = check(F, psi=np.zeros_like(psi), P=P, law="neo_hookean", params={"mu": MU, "lmbda": LMBDA})
+    assert not report.ok
+    assert report.hints == ["psi: yours is zero at every compared sample (the reference is not): not written, "
+                            "or not read"], report.hints

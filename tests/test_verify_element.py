@@ -428,6 +428,23 @@ def test_undefined_tangent_leaves_K_out(tmp_path: Path, monkeypatch: pytest.Monk
         el.check_element(_file(tmp_path, "only_K", X, u, None, K))
 
 
+def test_rotation_law_at_a_kink_leaves_f_and_K_out(tmp_path: Path) -> None:
+    """corotated with the element inverted to F = diag(1, 1, -1) (its polar rotation is not unique, psi has a
+    kink: Law.stress_undefined and tangent_undefined): neither f nor K is a derivative there, so neither is
+    compared (each a note with the count) and, with nothing left, the check is bad input naming both; W
+    (psi = min over SO(3), defined) still is. Slightly off the kink both are compared again."""
+    X = REF_TET.copy()
+    u = X @ (np.diag([1.0, 1.0, -1.0]) - I3).T
+    ref = el.assemble_element("corotated", {"mu": MU, "lmbda": LMBDA}, X, u)
+    with pytest.raises(ValueError, match="f not checked.*1 of 1 quadrature points.*K not checked"):
+        el.check_element(_file(tmp_path, "kink", X, u, 3 * ref.f, 3 * ref.K, material="corotated",
+                               W=ref.W))
+    near = X @ (np.diag([1.0, 0.9, -1.0]) - I3).T
+    ref = el.assemble_element("corotated", {"mu": MU, "lmbda": LMBDA}, X, near)
+    report = el.check_element(_file(tmp_path, "near", X, near, ref.f, ref.K, material="corotated"))
+    assert report.ok and [r.quantity for r in report.rows] == ["f", "K"], report.format()
+
+
 def test_check_bad_input_names_the_key(tmp_path: Path) -> None:
     X, u = tet4_element()
     f, K = p1_numpy(neo_hookean, X, u)

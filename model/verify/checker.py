@@ -4,7 +4,9 @@ user's own test suite) and from a file (``verify check FILE``).
 Per quantity and sample n (report.py): abs = ||user_n - ref_n||_F, rel = abs / max(||ref_n||_F, floor),
 floor = 1e-6 max_m ||ref_m||_F over the compared samples. Left out, with a count per reason:
 samples where the reference is not finite (psi, P or A NaN/inf, e.g. ln J at det F <= 0) from every
-quantity, and samples where the law says the tangent is undefined (Law.tangent_undefined) from A.
+quantity, samples where the law says the tangent is undefined (Law.tangent_undefined) from A, and
+samples where it says P itself is undefined (Law.stress_undefined: a rotation law where the polar
+rotation is not unique, psi has a kink there) from the stresses.
 With ``projected`` the user's tangent is compared with the PSD projection of the reference (the 9x9
 matrix A[(i,j),(k,l)] with its negative eigenvalues set to 0, forms.projection.project_tangent).
 
@@ -38,7 +40,10 @@ from model.verify.report import CheckRow, Report
 
 Arrays = dict[str, np.ndarray]
 NOT_FINITE = "reference not finite there (psi, P or A is NaN/inf, e.g. ln J at det F <= 0)"
-UNDEFINED = "tangent undefined there (a breakpoint of the law: Law.tangent_undefined)"
+UNDEFINED = ("tangent undefined there (a breakpoint of the law, or a polar rotation that is not unique: "
+             "Law.tangent_undefined)")
+STRESS_UNDEFINED = ("stress undefined there (psi has a kink: the polar rotation is not unique, "
+                    "Law.stress_undefined)")
 LOSSY = "the conversion to this layout loses more than rtol/10 there (layouts.conversion_accuracy)"
 #: the quantities of a check in the order of the report: the energy, the stresses (file keys), the tangent
 QUANTITIES = ("psi", "P", "PK2", "sigma", "A")
@@ -102,6 +107,21 @@ def _as_samples(name: str, values: Any, n: int, shape: tuple[int, ...]) -> np.nd
     return array.reshape(n, *shape)
 
 
+def _require_layout_of_matrix(layout: str, tangent: Any) -> None:
+    """ValueError when a tangent of (N, 9, 9) or (N, 6, 6) is to be read as ijkl: a 9x9 Hessian is row-major
+    or column-major in vec(F) and a 6x6 matrix one of three Voigt tangents, and reading either as
+    A[i,j,k,l] would silently pick one (the 9x9 as row-major vec(F), HOBAK's column-major then fails at
+    relative error ~1 for no visible reason). The user names the layout instead."""
+    shape = tuple(np.shape(tangent)[1:])
+    if layout != "ijkl" or shape not in ((9, 9), (6, 6)):
+        return
+    choices = [name for name in layouts.TANGENT_LAYOUTS if layouts.TANGENT_SHAPES[name] == shape]
+    described = ", ".join(f"{name} ({layouts.LAYOUT_SHORT[name]})" for name in choices)
+    usual = "; HOBAK and Dynamic Deformables write hessian9-col" if shape == (9, 9) else ""
+    raise ValueError(f"tangent: shape {np.shape(tangent)} is a {shape[0]}x{shape[1]} matrix per sample, not ijkl's "
+                     f"(N, 3, 3, 3, 3): give its layout (--layout or layout=), one of {described}{usual}")
+
+
 def _fields(material: str, fields: dict[str, Any] | None, n: int) -> Arrays:
     """The law's fields per sample (a single value is used for every sample); ValueError naming the field."""
     wanted = forms.resolve_law(material).fields
@@ -122,12 +142,15 @@ def _fields(material: str, fields: dict[str, Any] | None, n: int) -> Arrays:
 
 
 def _factor_hint(q: str, u: np.ndarray, r: np.ndarray, rtol: float) -> str | None:
-    """"yours = c x reference" when a constant c != 1 fits every compared sample within 10 rtol."""
+    """"yours = c x reference" when a constant c != 1 fits every compared sample within 10 rtol; "yours is
+    zero" when ||u|| <= rtol ||r|| (c = 0 is no modulus off by a factor)."""
     u, r = u.reshape(-1), r.reshape(-1)
     rr = float(r @ r)
     if rr == 0 or not np.all(np.isfinite(u)):
         return None
     c = float(u @ r) / rr
+    if np.linalg.norm(u) <= rtol * np.sqrt(rr):
+        return f"{q}: yours is zero at every compared sample (the reference is not): not written, or not read"
     if abs(c - 1.0) <= rtol or np.linalg.norm(u - c * r) > 10 * rtol * max(np.linalg.norm(u), 1e-300):
         return None
     return (f"{q}: yours = c x reference with c = {c:.6g} at every sample: a constant factor (a modulus off by "
@@ -191,6 +214,7 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
             voigt = np.asarray(value).ndim == 2 and np.shape(value)[-1] == 6
             user[key] = _as_samples(key, value, n, (6,) if voigt else (3, 3))
     if tangent is not None:
+        _require_layout_of_matrix(layout, tangent)
         user["A"] = _as_samples(f"tangent ({layout})", tangent, n, layouts.TANGENT_SHAPES[layout])
     if not user:
         raise ValueError("none of psi, P, PK2, sigma, tangent to check")
@@ -206,11 +230,15 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
         accuracy = layouts.conversion_accuracy(layout, F)
         lossy_S = layouts.conversion_accuracy(layout, F, "S")["stress"] > rtol / 10
     exclude: dict[str, list[tuple[str, np.ndarray]]] = {}
+    kink = evaluator.stress_undefined(F, **sample_fields)
+    for key in ("P", "PK2", "sigma"):
+        if key in user:
+            exclude[key] = [(STRESS_UNDEFINED, kink)]
     if "A" in user:
         exclude["A"] = [(UNDEFINED, evaluator.tangent_undefined(F, **sample_fields)),
                         (LOSSY, accuracy["tangent"] > rtol / 10)]
     if "PK2" in user:
-        exclude["PK2"] = [(LOSSY, lossy_S)]
+        exclude["PK2"].append((LOSSY, lossy_S))
     rows = compare(user, ref, rtol, exclude=exclude, labels=labels)
     hints: list[str] = []
     compared = {q: _compared_mask(ref[q], exclude.get(q, [])) for q in user}
@@ -231,8 +259,8 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
         hints += found
     notes = []
     for row in rows:
-        if row.quantity == "A" and not row.compared:
-            notes.append("no sample left to compare A")
+        if row.quantity != "psi" and not row.compared:
+            notes.append(f"no sample left to compare {row.quantity}")
     return Report(rows, rtol, law, F, labels, hints, notes, projected and "A" in user, layout)
 
 

@@ -99,6 +99,11 @@ class ReferenceEvaluator:
         """(N,) bool: the law's own statement of where A = dP/dF does not exist (forms.law.Law.tangent_undefined)."""
         return np.asarray(self.law.tangent_undefined(np.reshape(F, (-1, 3, 3)), **fields), dtype=bool)
 
+    def stress_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
+        """(N,) bool: where P = dpsi/dF does not exist (forms.law.Law.stress_undefined: a rotation law where
+        the polar rotation is not unique)."""
+        return np.asarray(self.law.stress_undefined(np.reshape(F, (-1, 3, 3)), **fields), dtype=bool)
+
     def parameters(self) -> dict[str, Any]:
         return self.law.parameters()
 
