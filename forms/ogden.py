@@ -1,11 +1,11 @@
 """The Ogden law (Ogden 1972), in FEBio's uncoupled form, with an exact tangent at repeated stretches.
 
-    psi = sum_{p=1..3} c_p / m_p^2 (lbar_1^m_p + lbar_2^m_p + lbar_3^m_p - 3) + (kappa/2)(ln J)^2,
+    psi = sum_{p=1..N} c_p / m_p^2 (lbar_1^m_p + lbar_2^m_p + lbar_3^m_p - 3) + (kappa/2)(ln J)^2,  N <= 6,
 
 lbar_i = J^(-1/3) lambda_i the isochoric principal stretches (lambda_i the singular values of F). This is
-FEBio's "Ogden" (FEBioMech/FEOgdenMaterial.cpp: c_i, m_i; its uncoupled volumetric term U(J) = (k/2)(ln J)^2,
-k = kappa). Ogden's original form sum_p mu_p / alpha_p (lambda_1^alpha_p + ... - 3) maps to it by
-c_p = mu_p alpha_p, m_p = alpha_p; the small-strain shear modulus is mu = sum_p c_p / 2 = sum_p mu_p alpha_p / 2.
+FEBio's "Ogden" (FEBioMech/FEOgdenMaterial.cpp: up to six terms c_i, m_i; its uncoupled volumetric term
+U(J) = (k/2)(ln J)^2, k = kappa). Ogden's original form sum_p mu_p / alpha_p (lambda_1^alpha_p + ... - 3) maps to
+it by c_p = mu_p alpha_p, m_p = alpha_p; the small-strain shear modulus is mu = sum_p c_p / 2 = sum_p mu_p alpha_p / 2.
 A term with c_p = 0 is absent (m_p then unused); m_p != 0, c_p >= 0 with c_1 > 0 (so c_p / m_p^2 > 0 and the
 law is stable: Ogden's mu_p alpha_p > 0).
 
@@ -29,7 +29,9 @@ import ufl
 from forms.law import Expr, Law, ParameterError, check_keys, require, require_bulk, require_finite
 from forms.spectral import spectral_energy
 
-TERMS = 3
+#: the most terms (FEBio's Ogden: c1..c6, m1..m6); the parameter names are c_p, m_p for p = 1..TERMS
+TERMS = 6
+KEYS = tuple(f"{x}{p}" for p in range(1, TERMS + 1) for x in ("c", "m")) + ("kappa",)
 
 
 @dataclass(frozen=True)
@@ -47,22 +49,28 @@ class Ogden(Law):
     m2: float = 1.0
     c3: float = 0.0
     m3: float = 1.0
+    c4: float = 0.0
+    m4: float = 1.0
+    c5: float = 0.0
+    m5: float = 1.0
+    c6: float = 0.0
+    m6: float = 1.0
     #: (Q0, D) UFL coefficients of the current eigen state, set by the machinery (with_eigenbasis)
     eigenbasis: Any = None
 
     def __post_init__(self) -> None:
-        require_finite(self.name, c1=self.c1, m1=self.m1, c2=self.c2, m2=self.m2, c3=self.c3, m3=self.m3)
+        require_finite(self.name, **{k: getattr(self, k) for k in KEYS if k != "kappa"})
         require_bulk(self.name, kappa=self.kappa)
         require(self.c1 > 0, self.name, "c1", self.c1, "> 0")
-        for p in (2, 3):
+        for p in range(2, TERMS + 1):
             require(getattr(self, f"c{p}") >= 0, self.name, f"c{p}", getattr(self, f"c{p}"), ">= 0")
-        for p in (1, 2, 3):
+        for p in range(1, TERMS + 1):
             require(getattr(self, f"m{p}") != 0, self.name, f"m{p}", getattr(self, f"m{p}"), "!= 0")
         require(self.kappa >= 0, self.name, "kappa", self.kappa, ">= 0")
 
     @classmethod
     def from_parameters(cls, **params: Any) -> Ogden:
-        check_keys(cls.name, params, ("c1", "m1", "c2", "m2", "c3", "m3", "kappa"), required=("c1", "m1", "kappa"))
+        check_keys(cls.name, params, KEYS, required=("c1", "m1", "kappa"))
         return cls(**params)
 
     @property
@@ -112,7 +120,7 @@ class Ogden(Law):
         return ufl.ln(ufl.det(F))
 
     def parameters(self) -> dict[str, float]:
-        return {k: float(getattr(self, k)) for k in ("c1", "m1", "c2", "m2", "c3", "m3", "kappa")}
+        return {k: float(getattr(self, k)) for k in KEYS}
 
 
 __all__ = ["Ogden", "ParameterError"]

@@ -151,17 +151,17 @@ BUILT_IN: tuple[LawEntry, ...] = (
              Tendon, fields=("a0",), parameter_sets=LAME_SETS, sets_condition="when isotropic = stvk",
              bulk_parameter="K", volume_constraint="ln J", kappa="2 K"),
     LawEntry("ogden", "Ogden (1972) in FEBio's uncoupled form: lbar_i = J^(-1/3) lambda_i the isochoric principal "
-             "stretches, up to three terms. Ogden's mu_p, alpha_p: c_p = mu_p alpha_p, m_p = alpha_p; small-strain "
-             "shear modulus sum_p c_p / 2.",
+             "stretches, up to six terms (as FEBio). Ogden's mu_p, alpha_p: c_p = mu_p alpha_p, m_p = alpha_p; "
+             "small-strain shear modulus sum_p c_p / 2.",
              "sum_p c_p / m_p^2 (lbar_1^m_p + lbar_2^m_p + lbar_3^m_p - 3) + (kappa/2)(ln J)^2",
              (Parameter("c1", "coefficient of the first term (c_p = mu_p alpha_p of Ogden's form)", PA, lower=0.0),
               Parameter("m1", "exponent of the first term (alpha_p)", ONE, constraint="!= 0"),
-              Parameter("c2", "coefficient of the second term (0: absent)", PA, default=0.0, lower=0.0,
-                        lower_open=False),
-              Parameter("m2", "exponent of the second term", ONE, default=1.0, constraint="!= 0"),
-              Parameter("c3", "coefficient of the third term (0: absent)", PA, default=0.0, lower=0.0,
-                        lower_open=False),
-              Parameter("m3", "exponent of the third term", ONE, default=1.0, constraint="!= 0"),
+              *(parameter
+                for p, nth in ((2, "second"), (3, "third"), (4, "fourth"), (5, "fifth"), (6, "sixth"))
+                for parameter in (Parameter(f"c{p}", f"coefficient of the {nth} term (0: absent)", PA, default=0.0,
+                                            lower=0.0, lower_open=False),
+                                  Parameter(f"m{p}", f"exponent of the {nth} term", ONE, default=1.0,
+                                            constraint="!= 0"))),
               Parameter("kappa", "bulk modulus of (kappa/2)(ln J)^2 (FEBio's k)", PA, lower=0.0, lower_open=False,
                         infinite=True)),
              Ogden, bulk_parameter="kappa", volume_constraint="ln J",

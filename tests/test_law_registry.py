@@ -88,7 +88,7 @@ def valid(name: str, key: str) -> dict:
 
 
 #: values that break a bound given in words (relative to another parameter)
-BREAK_CONSTRAINT = {"lmbda": -1.0e3, "l_star": 0.9, "m1": 0.0, "m2": 0.0, "m3": 0.0, "lam_max": 0.9}
+BREAK_CONSTRAINT = {"lmbda": -1.0e3, "l_star": 0.9, "lam_max": 0.9, **{f"m{p}": 0.0 for p in range(1, 7)}}
 
 
 def cases() -> list[tuple[str, str]]:
