@@ -153,6 +153,8 @@ def test_emit_writes_the_path_given_with_string_params_and_fields(tmp_path) -> N
     assert run.returncode == 0, run.stderr
     written = tmp_path / "xx.npz"
     assert written.is_file() and not out.exists()
+    missing = _verify("check", str(out))  # the path given to emit: check names the file emit wrote
+    assert missing.returncode == 2 and f"{written} exists" in missing.stderr, missing.stderr
     assert run.stdout.splitlines()[0].startswith(f"wrote {written}: 14 of 14 samples of muscle")
     data = np.load(written)
     assert np.all(data["a0"] == [0.0, 0.0, 1.0]) and np.all(data["alpha"] == 0.5)
@@ -229,3 +231,11 @@ def test_help_lists_laws_parameters_layouts_and_formats() -> None:
         for layout in ("ijkl", "hessian9-col", "hessian9-row", "voigt-spatial", "abaqus-ddsdde", "voigt-material"):
             assert layout in text
         assert ".npz" in text and "CSV" in text
+    element = _verify("element", "--help")  # the element's own file format; the laws and their parameters
+    assert element.returncode == 0, element.stderr
+    text = " ".join(element.stdout.split())
+    for name, entry in forms.REGISTRY.items():
+        assert f"{name}: " in text
+        for p in entry.parameters:
+            assert p.name in text
+    assert "m6=1" in text and "exit codes: 0 agrees" in text

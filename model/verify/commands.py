@@ -21,12 +21,13 @@ from model.verify import files, layouts
 SUBCOMMANDS = ("emit", "check", "seeds", "element")
 
 
-def laws_help() -> str:
-    """One line per built-in law: name, fields, parameters with their defaults (required ones bare)."""
+def laws_help(header: str = "laws (--material NAME; or --energy FILE.py:FUNCTION, a UFL energy of your own):") -> str:
+    """One line per built-in law after ``header``: name, fields, parameters with their defaults (required ones
+    bare)."""
     import forms
     from forms.metadata import format_number
 
-    lines = ["laws (--material NAME; or --energy FILE.py:FUNCTION, a UFL energy of your own):"]
+    lines = [header]
     for entry in forms.REGISTRY.values():
         in_sets = {name for group in entry.parameter_sets for name in group}
         params = [f"{p.name}={format_number(p.default)}" if p.default is not None else f"{p.name} (required)"
@@ -97,7 +98,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     _law_options(emit_parser, required=True)
     emit_parser.add_argument("--samples", type=int, required=True)
     emit_parser.add_argument("--seed", type=int, required=True)
-    emit_parser.add_argument("--out", type=Path, required=True, help="the file written (exactly this path)")
+    emit_parser.add_argument("--out", type=Path, required=True,
+                             help="the file written: this path when it is a directory (.npy files) or ends in "
+                                  ".npz, .csv or .json (the format), else this path with .npz appended (printed)")
     emit_parser.add_argument("--inverted", action="store_true", help="also emit inverted F (det F < 0)")
     emit_parser.add_argument("--field", action="append", default=[], metavar="NAME=VALUE",
                              help="one field value for every sample: S=identity, a0=1,0,0, alpha=0.5")

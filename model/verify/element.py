@@ -786,9 +786,13 @@ def _parse_order(text: str | None) -> NodeOrder | None:
 def add_parser(subparsers: Any) -> None:
     """``verify element FILE [--rtol] [--material] [--param KEY=VALUE] [--node-order] [--quadrature-degree]
     [--emit OUT]`` on the verify subcommands."""
+    from model.verify.commands import laws_help
+
+    epilog = (laws_help("laws (--material NAME, or FILE.py:FUNCTION, a UFL energy of your own):")
+              + "\nexit codes: 0 agrees, 1 out of tolerance, 2 bad input")
     parser = subparsers.add_parser("element", help="check an element's force vector f and stiffness matrix K "
                                    "(tet4, tet10, hex8) against dolfinx on that one cell", description=HELP,
-                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+                                   epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", type=Path, help="the element: .json or .npz (layout above)")
     parser.add_argument("--rtol", type=float, default=1e-8, help="relative Frobenius tolerance (default 1e-8)")
     parser.add_argument("--material", default=None, help="the law (a built-in name or FILE.py:FUNCTION), when the "

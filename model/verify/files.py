@@ -183,6 +183,10 @@ def read_arrays(path: str | Path, layout: str | None = None) -> Arrays:
     the file's and fixes the tangent's shape."""
     path = Path(path)
     if not path.exists():
+        written = output_path(path)[0]
+        if written != path and written.exists():  # emit --out xx wrote xx.npz
+            raise FileFormatError(f"{path}: no such file or directory; {written} exists (emit --out {path.name} "
+                                  f"writes {written.name}: a path without .npz, .csv or .json gets .npz)")
         raise FileFormatError(f"{path}: no such file or directory")
     fmt = file_format(path)
     reader = {"npz": _read_npz, "npy": _read_npy_dir, "csv": _read_csv, "json": _read_json}[fmt]
