@@ -174,3 +174,21 @@ def test_user_law_errors(tmp_path: Path, text: str, fragment: str) -> None:
     assert "\n" not in message
     assert message.startswith(spec), message
     assert fragment in message, message
+
+
+def test_energy_that_does_not_compile_is_one_line(tmp_path: Path) -> None:
+    """A scalar UFL energy FFCx cannot translate to C (the modified Bessel function K has no C rule) was a
+    traceback from deep inside FFCx; now verify (emit, check through ReferenceEvaluator) and verify element
+    say in one line which law does not compile and why."""
+    from model.verify.element import assemble_element
+
+    spec = _write(tmp_path, "bessel.py", "import ufl\ndef psi(F, *, mu=1.0):\n"
+                                          "    return mu * ufl.bessel_K(1, ufl.tr(F.T * F))\n")
+    resolve_law(spec)  # the file itself is fine: a scalar UFL expression of F
+    with pytest.raises(ParameterError) as info:
+        ReferenceEvaluator(spec, {}, 2)
+    message = str(info.value)
+    assert message.startswith(f"{spec}: the energy does not compile (UFL/FFCx ") and "\n" not in message, message
+    X = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    with pytest.raises(ValueError, match="the energy does not compile"):
+        assemble_element(spec, {}, X, np.zeros((4, 3)))

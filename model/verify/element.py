@@ -317,9 +317,16 @@ class ElementAssembler:
                         "quadrature_points": tuple(tuple(float(x) for x in point) for point in self.rule[0]),
                         "quadrature_weights": tuple(float(w) for w in self.rule[1])}
         dx = ufl.dx(domain=msh, metadata=metadata)
-        residual = ufl.inner(self.material.stress(F, R), ufl.grad(ufl.TestFunction(space))) * dx
-        self.forms = (fem.form(residual), fem.form(ufl.derivative(residual, self.u, ufl.TrialFunction(space))),
-                      fem.form(self.material.energy(F, R) * dx))
+        try:
+            residual = ufl.inner(self.material.stress(F, R), ufl.grad(ufl.TestFunction(space))) * dx
+            self.forms = (fem.form(residual), fem.form(ufl.derivative(residual, self.u, ufl.TrialFunction(space))),
+                          fem.form(self.material.energy(F, R) * dx))
+        except Exception as err:  # noqa: BLE001 -- a law of the user's own: one line naming it
+            from model.verify.evaluator import compile_error, is_user_law
+
+            if not is_user_law(law):
+                raise
+            raise ValueError(compile_error(law, err)) from None
         rule_points = self.rule[0] if self.rule is not None else compat.quadrature_points(msh, degree)
         self.num_points = len(rule_points)
         self._F_at_points = fem.Expression(F, np.asarray(rule_points, dtype=np.float64))

@@ -33,6 +33,19 @@ def law_fields(material: str) -> tuple[str, ...]:
     return forms.resolve_law(material).fields
 
 
+def is_user_law(material: str) -> bool:
+    """True for "FILE.py:FUNCTION", a law of the user's own (forms/user_law.py)."""
+    return ".py:" in material
+
+
+def compile_error(material: str, err: BaseException) -> str:
+    """One line for an energy of the user's own that UFL cannot differentiate or FFCx cannot compile to C."""
+    first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+    return (f"{material}: the energy does not compile (UFL/FFCx {type(err).__name__}: {first}); write it with "
+            "UFL operators FFCx translates to C (+ - * / **, sqrt, exp, ln, cos, sin, ..., conditional, "
+            "det, inv, tr, inner, dot)")
+
+
 class ReferenceEvaluator:
     """psi, P, A of a law at many F (and per-sample fields), through UFL and dolfinx."""
 
@@ -63,12 +76,17 @@ class ReferenceEvaluator:
         if self.law.needs_rotation:
             self.polar = PolarField(self.mesh, self.law.rotation_argument(Fv), 1)
             R = self.polar.rotation
-        psi = self.law.energy(Fv, R)
-        P = self.law.stress(Fv, R)
-        A = ufl.diff(P, Fv)
         points = compat.quadrature_points(self.mesh, 1)
-        self.expressions = {"psi": fem.Expression(psi, points), "P": fem.Expression(P, points),
-                            "A": fem.Expression(A, points)}
+        try:
+            psi = self.law.energy(Fv, R)
+            P = self.law.stress(Fv, R)
+            A = ufl.diff(P, Fv)
+            self.expressions = {"psi": fem.Expression(psi, points), "P": fem.Expression(P, points),
+                                "A": fem.Expression(A, points)}
+        except Exception as err:  # noqa: BLE001 -- a law of the user's own: one line naming it
+            if not is_user_law(material):
+                raise
+            raise forms.ParameterError(compile_error(material, err)) from None
         self.cells = np.arange(n, dtype=np.int32)
 
     def _set(self, function: fem.Function, values: np.ndarray) -> None:
