@@ -108,6 +108,8 @@ def linearised_rotation(M: ufl.core.expr.Expr, R0: ufl.core.expr.Expr) -> ufl.co
     lies between det K / I2(K) and 3 det K / I2(K) (I2 the second invariant), so the test
 
         det K > SINGULAR_K tr(K) I2(K)   (the smallest eigenvalue of K above ~1e-8 of the largest)
+        and I2(K) > SINGULAR_K tr(K)^2   (the middle one too: with two eigenvalues ~ 0, at M = s times an
+                                          inverted rotation, I2 is rounding of either sign)
 
     keeps the exact linearisation, and otherwise w = 0: R = R0 exactly (the minimiser over SO(3) that the
     SVD picked; any choice among equal singular values gives the same ||M - R||), and dR = 0 there
@@ -126,7 +128,10 @@ def _solve_K(A: ufl.core.expr.Expr, b: ufl.core.expr.Expr) -> ufl.core.expr.Expr
     trK = ufl.tr(K)
     I2 = 0.5 * (trK**2 - ufl.inner(K, K))
     detK = ufl.det(K)
-    regular = ufl.gt(detK, SINGULAR_K * trK * I2)
+    # two eigenvalues of K ~ 0 (M = an inverted rotation times s, signed singular values (s, s, -s)) leave I2
+    # at rounding level, of either sign: I2 < 0 turned the first test into det K > (a negative number) and w
+    # into rounding / 1e-33 (psi 125 instead of 4 at an inverted rotation). The second test catches that.
+    regular = ufl.And(ufl.gt(detK, SINGULAR_K * trK * I2), ufl.gt(I2, SINGULAR_K * trK**2))
     return ufl.conditional(regular, 1.0 / ufl.conditional(regular, detK, 1.0), 0.0) * (_adjugate(K) * b)
 
 

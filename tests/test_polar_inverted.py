@@ -69,6 +69,24 @@ def test_corotated_energy_is_the_minimum_over_rotations() -> None:
     np.testing.assert_allclose(psi2, 2.0 * expected + 1.5 * (np.linalg.det(F) - 1.0) ** 2, rtol=1e-12, atol=1e-13)
 
 
+def test_inverted_rotations_and_isotropic_stretches_over_many_rotations() -> None:
+    """s Q1 diag(1, 1, -1) Q2 (signed singular values (s, s, -s)): K has two eigenvalues ~ 0, and I2(K) is
+    rounding of either sign. With I2 < 0 the singularity test passed and w was rounding / 1e-33: psi was
+    124.7 instead of 4 at an inverted rotation, 66495 instead of 4.96 at s = 1.207 (found by emit
+    --inverted --at-breakpoints). 300 random pairs of rotations, s in [0.5, 2], and uniaxial (a, b, -b)."""
+    rng = np.random.default_rng(7)
+    R = Rotation.random(600, random_state=17).as_matrix()
+    s = rng.uniform(0.5, 2.0, 300)
+    s[:100] = 1.0
+    sigma = np.stack([s, s, -s], axis=1)
+    sigma[200:, 0] = s[200:] * rng.uniform(1.1, 2.0, 100)  # (a, b, -b), a > b
+    M = R[:300] @ (sigma[:, :, None] * np.eye(3)) @ R[300:]
+    ev = ReferenceEvaluator("corotated", {"mu": 1.0, "lmbda": 0.0}, len(M))
+    psi = ev.evaluate(M)["psi"]
+    np.testing.assert_allclose(psi, _nearest_rotation_distance(M), rtol=1e-12, atol=1e-12)
+    assert ev.law.tangent_undefined(M).all()
+
+
 def test_shape_target_energy_is_the_minimum_over_rotations() -> None:
     S = np.array([[1.3, 0.2, 0.0], [0.2, 0.9, 0.1], [0.0, 0.1, 1.1]])
     F = _matrices(S)

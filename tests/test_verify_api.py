@@ -272,3 +272,26 @@ def test_zero_is_not_a_constant_factor() -> None:
     assert not report.ok
     assert report.hints == ["psi: yours is zero at every compared sample (the reference is not): not written, "
                             "or not read"], report.hints
+
+
+def test_at_breakpoints_with_inverted_emits_rotation_kinks(tmp_path) -> None:
+    """emit --inverted --at-breakpoints for a rotation law: some inverted samples have the two smallest
+    singular values equal (labels ..._kink), psi there is min over SO(3) (numpy's signed singular values),
+    and a check of the file leaves P and A out there with a count. Without --at-breakpoints none."""
+    data = emit("corotated", {"mu": 1.0, "lmbda": 0.0}, samples=40, seed=3, out=tmp_path / "kinks.npz",
+                inverted=True, include_undefined=True)
+    labels = [str(x) for x in data["labels"]]
+    kinks = np.array([label.endswith("_kink") for label in labels])
+    assert 1 <= kinks.sum() <= 5, labels
+    s = np.linalg.svd(data["F"], compute_uv=False)
+    assert np.all(np.linalg.det(data["F"][kinks]) < 0)
+    assert np.allclose(s[kinks, 1], s[kinks, 2], rtol=1e-12)
+    s[:, 2] *= np.sign(np.linalg.det(data["F"]))
+    np.testing.assert_allclose(data["psi"], np.sum((s - 1.0) ** 2, axis=1), rtol=1e-12, atol=1e-12)
+    report = check(str(data["path"]))
+    assert report.ok, str(report)
+    for q in ("P", "A"):
+        assert sum(count for _, count in report.row(q).excluded) == kinks.sum(), report.row(q)
+    plain = emit("corotated", {"mu": 1.0, "lmbda": 0.0}, samples=40, seed=3, out=tmp_path / "plain.npz",
+                 inverted=True)
+    assert not any(str(label).endswith("_kink") for label in plain["labels"])

@@ -39,7 +39,7 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
         if name not in drawn:
             raise ValueError(f"--field {name}: {material} does not take this field")
         drawn[name] = np.array(np.broadcast_to(value, drawn[name].shape))
-    F, labels = deformation_samples(samples, seed, inverted, drawn.get("S"))
+    F, labels = deformation_samples(samples, seed, inverted, drawn.get("S"), at_kinks=include_undefined)
     evaluator = ReferenceEvaluator(material, params, samples)
     moved: dict[str, int] = {}
     dropped: dict[str, int] = {}

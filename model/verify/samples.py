@@ -50,14 +50,16 @@ def _from_singular_values(rng: np.random.Generator, sigma: np.ndarray) -> np.nda
 
 
 def deformation_samples(n: int, seed: int, inverted: bool = False,
-                        targets: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+                        targets: np.ndarray | None = None, at_kinks: bool = False) -> tuple[np.ndarray, list[str]]:
     """n deformation gradients covering the hard cases, and a label for each (module docstring).
 
     With ``inverted``, a quarter of them get det F < 0 (F times a reflection), chosen among samples
     where the two smallest singular values of the matrix whose rotation the law uses (F D, or F D S
     with the shape targets ``targets``) differ by more than 5%: for det < 0 the rotation variant of
     the polar decomposition has no derivative where they coincide (K = tr(Sigma) I - Sigma is
-    singular, the nearest rotation is not unique).
+    singular, the nearest rotation is not unique). With ``at_kinks`` as well (emit --inverted
+    --at-breakpoints) half of that quarter (at least one) is chosen where they do coincide (the identity,
+    rotations, isotropic and uniaxial (a, b, b), a > b, stretches), labelled ``inverted_..._kink``.
     """
     if n < 1:
         raise ValueError("--samples must be >= 1")
@@ -89,10 +91,15 @@ def deformation_samples(n: int, seed: int, inverted: bool = False,
         distinct = np.flatnonzero(sigma[:, 1] - sigma[:, 2] > 0.05 * sigma[:, 1])
         if len(distinct) == 0:
             raise ValueError("--inverted needs more samples (none with distinct singular values)")
-        flip = rng.permutation(distinct)[: max(1, n // 4)]
+        count = max(1, n // 4)
+        kinks = np.zeros(0, dtype=int)
+        if at_kinks:
+            repeated = np.flatnonzero(sigma[:, 1] - sigma[:, 2] <= 1e-12 * sigma[:, 1])
+            kinks = rng.permutation(repeated)[: max(1, count // 2)]
+        flip = np.concatenate([kinks, rng.permutation(distinct)[: count - len(kinks)]])
         F[flip] = F[flip] @ reflection
         for i in flip:
-            labels[i] = f"inverted_{labels[i]}"
+            labels[i] = f"inverted_{labels[i]}" + ("_kink" if i in kinks else "")
     return F, labels
 
 
