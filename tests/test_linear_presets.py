@@ -109,23 +109,25 @@ def mean_iterations(summary: dict[str, Any]) -> float:
 
 
 def test_taylor_hood_iterations_do_not_grow(shared_tmp: Path) -> None:
-    """Linear iterations per Newton iteration (ksp_rtol 1e-8, the preset's): refining the mesh once (at nu 0.3 and
-    at 0.4999) or going from nu 0.3 to 0.4999 (on either mesh) changes them by less than 45 %, on bars of 6 x 3 x 3
-    and 12 x 6 x 6 boxes (2 200 and 13 300 dofs). Issue 10's target is 30 %, and the preset misses it on these small
-    meshes: measured ratios up to 1.27 serially on both releases, 1.304 on 2 ranks with PETSc 3.18, and 1.36 on 2
-    ranks with PETSc 3.22 inside the whole suite (35.5 -> 48.25 at nu = 0.4999) where the same test alone stays
-    below 1.3 (the counts depend on what ran before: not understood yet); the 8 x 4 x 4 -> 16 x 8 x 8 pair gives
-    1.301 at nu = 0.4999 on 1 rank; at scale the counts grow 47 -> 63 from 3e4 to 1e6 dofs (docs/solvers.md,
-    "Scaling"). A preconditioner that lost its near null space or its Schur approximation would grow by far more."""
+    """Linear iterations per Newton iteration (ksp_rtol 1e-8, the preset's) on bars of 6 x 3 x 3 and 12 x 6 x 6
+    boxes (2 200 and 13 300 dofs): refining the mesh once (at nu 0.3 and at 0.4999) changes them by less than
+    issue 10's 30 % (measured: 1.15-1.26; with the six rigid-body modes alone as the u block's near null space
+    up to 1.36, docs/solvers.md, "The displacement block's near null space"). Going from nu 0.3 to 0.4999 on
+    either mesh: less than 35 % (measured 1.18-1.30 here, 1.30-1.31 at 1.2e5 dofs: the nu target of 30 % is
+    met only at the limit, docs/solvers.md, "Scaling"). A preconditioner that lost its near null space or its
+    Schur approximation would grow by far more."""
     counts = {}
     for n, nu in ((3, 0.3), (6, 0.3), (3, 0.4999), (6, 0.4999)):
         summary = run_raw(quiet(bar(n, nu), "iterative", steps=1), shared_tmp / f"{n}_{nu}")
         assert summary["status"] == "completed"
         counts[n, nu] = mean_iterations(summary)
     assert min(counts.values()) > 3, counts  # a real iteration, not a direct solve in disguise
-    pairs = [((3, nu), (6, nu)) for nu in (0.3, 0.4999)] + [((n, 0.3), (n, 0.4999)) for n in (3, 6)]
-    for a, b in pairs:
-        assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < 1.45, (a, b, counts)
+    for nu in (0.3, 0.4999):  # refinement
+        a, b = (3, nu), (6, nu)
+        assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < 1.30, (a, b, counts)
+    for n in (3, 6):  # nu -> 1/2
+        a, b = (n, 0.3), (n, 0.4999)
+        assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < 1.35, (a, b, counts)
 
 
 @pytest.mark.parametrize(("options", "key"), [
@@ -180,3 +182,76 @@ def test_iterative_mixed_refuses_vi_contact() -> None:
         resolve(problem, "iterative", vi=True)
     assert resolve(problem, "auto", vi=True).preset == "direct"
     assert resolve(problem, "iterative").options["pc_type"] == "fieldsplit"
+
+
+def _stiffness(space: Any, deviatoric: bool) -> Any:
+    """int 2 dev(eps(u)) : dev(eps(v)) dx (or the same with + tr(eps(u)) tr(eps(v)): lambda = 1, compressible), no
+    boundary conditions."""
+    import ufl
+    from dolfinx import fem
+    from dolfinx.fem import petsc as fem_petsc
+
+    u, v = ufl.TrialFunction(space), ufl.TestFunction(space)
+    eps_u, eps_v = ufl.sym(ufl.grad(u)), ufl.sym(ufl.grad(v))
+    form = 2.0 * ufl.inner(ufl.dev(eps_u), ufl.dev(eps_v))
+    if not deviatoric:
+        form = form + ufl.tr(eps_u) * ufl.tr(eps_v)
+    matrix = fem_petsc.assemble_matrix(fem.form(form * ufl.dx(metadata={"quadrature_degree": 2})))
+    matrix.assemble()
+    return matrix
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_dilation_is_a_zero_energy_mode_of_the_deviatoric_stiffness(degree: int) -> None:
+    """The u block's near null space (vector_rigid_body_modes(dilation=True)): seven orthonormal vectors, and each
+    one, the dilation x - x_c included, has zero deviatoric energy: |K_dev m| <= 1e-12 |K_dev| (dev(eps(x)) = 0).
+    With a bulk term (lambda = 1) the dilation is not a zero-energy mode, the rigid-body modes still are."""
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    from model import compat
+    from model.solvers.linear import vector_rigid_body_modes
+
+    msh = mesh.create_box(MPI.COMM_WORLD, [[0.0, 0.0, 0.0], [2.0, 1.0, 1.0]], [4, 2, 3])
+    space = compat.function_space(msh, "Lagrange", degree, shape=(3,))
+    modes = vector_rigid_body_modes(space, dilation=True)
+    assert len(modes) == 7
+    gram = np.array([[a.dot(b) for b in modes] for a in modes])
+    assert np.allclose(gram, np.eye(7), atol=1e-12)
+    for deviatoric in (True, False):
+        matrix = _stiffness(space, deviatoric)
+        scale = matrix.norm()
+        residuals = []
+        for mode in modes:
+            product = mode.duplicate()
+            matrix.mult(mode, product)
+            residuals.append(product.norm() / scale)
+            product.destroy()
+        matrix.destroy()
+        assert max(residuals[:6]) < 1e-12, residuals
+        if deviatoric:
+            assert residuals[6] < 1e-12, residuals
+        else:
+            assert residuals[6] > 1e-4, residuals  # 2.8e-3 (P2), not rounding
+    for mode in modes:
+        mode.destroy()
+
+
+def test_gmres_unless_an_inner_krylov_solve(shared_tmp: Path) -> None:
+    """The mixed preset's outer method is GMRES, right preconditioned (the preconditioner is a fixed linear
+    operator); an inner Krylov solve in the user's options (fieldsplit_u_ksp_type cg) makes it FGMRES, and a
+    Krylov method of the user's own keeps no GMRES-only option."""
+    from model.config import parse
+    from model.pipeline import build
+    from model.solvers.linear import resolve
+
+    problem = build(parse(quiet(bar(2, 0.4999), "iterative"), Path("."))).problem
+    plain = resolve(problem, "iterative").options
+    assert plain["ksp_type"] == "gmres" and plain["ksp_pc_side"] == "right"
+    inner = resolve(problem, "iterative", {"fieldsplit_u_ksp_type": "cg"}).options
+    assert inner["ksp_type"] == "fgmres" and "ksp_pc_side" not in inner and inner["ksp_gmres_restart"] == 200
+    assert resolve(problem, "iterative", {"fieldsplit_u_ksp_type": "preonly"}).options["ksp_type"] == "gmres"
+    minres = resolve(problem, "iterative", {"ksp_type": "minres"}).options
+    assert "ksp_pc_side" not in minres and "ksp_gmres_restart" not in minres
+    chosen = resolve(problem, "iterative", {"ksp_type": "gmres", "fieldsplit_u_ksp_type": "cg"}).options
+    assert chosen["ksp_type"] == "gmres"  # the user's own choice stands

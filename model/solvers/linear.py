@@ -4,7 +4,7 @@ Presets (flat PETSc options, under the solver's prefix; ``petsc_options`` overri
 
     direct      preonly + LU (MUMPS)
     iterative   displacement formulation: CG + GAMG, the six rigid-body modes as near null space
-                mixed (Taylor-Hood P_k/P_(k-1)): FGMRES, right preconditioned by a Schur-complement fieldsplit
+                mixed (Taylor-Hood P_k/P_(k-1)): GMRES, right preconditioned by a Schur-complement fieldsplit
     auto        direct below AUTO_DOFS unknowns (global), iterative from there
 
 The Newton matrix of the mixed formulation, ordered [u, p],
@@ -16,7 +16,7 @@ is factorised as J = [I 0; B A^-1 I] [A 0; 0 S] [I A^-1 B^T; 0 I], S = C - B A^-
 The preconditioner keeps the lower factor (``pc_fieldsplit_schur_fact_type lower``) with
 
     A^-1  ~ one V-cycle of algebraic multigrid on the displacement block (GAMG, near null space: the rigid-body
-            modes of the u block; or hypre BoomerAMG with block size 3)
+            modes of the u block and the dilation x - x_c; or hypre BoomerAMG with block size 3)
     S^-1  ~ Sp^-1,  Sp = - int (1/mu + 1/kappa) p q dx   (per material region; 1/kappa = 0 when kappa = inf),
 
 the pressure mass matrix weighted by the shear and bulk compliances, spectrally equivalent to S
@@ -27,7 +27,7 @@ small-strain shear modulus of the law (``shear_modulus``); kappa its bulk penalt
 The fields are given to PETSc as index sets (PCFieldSplitSetIS) named "u" and "p": each rank's owned dofs of
 the mixed space's sub-spaces, in the order of the collapsed sub-space (the u set node by node, x y z, block
 size 3), in global numbering. So the u sub-matrix is laid out like the collapsed vector space, and the
-rigid-body modes built on that space are its near null space (composed with the u index set as
+rigid-body modes and the dilation built on that space are its near null space (composed with the u index set as
 "nearnullspace", which PCFieldSplit attaches to the sub-matrix at every set-up).
 """
 
@@ -78,10 +78,13 @@ ITERATIVE_DISPLACEMENT: Options = {
     "mg_levels_ksp_type": "chebyshev",
     "mg_levels_pc_type": "jacobi",
 }
-#: mixed formulation: FGMRES + Schur fieldsplit (lower), GAMG on u, SSOR on the weighted pressure
-#: mass matrix
+#: mixed formulation: GMRES, right preconditioned by the Schur fieldsplit (lower), GAMG on u, SSOR on the weighted
+#: pressure mass matrix. The preconditioner is a fixed linear operator (one V-cycle, one SOR sweep), so GMRES is
+#: enough and keeps one basis where FGMRES keeps two (1 GB at 1e6 dofs); an inner Krylov solve in the user's options
+#: (fieldsplit_u_ksp_type cg, ...) makes it vary from one application to the next: then FGMRES (resolve).
 ITERATIVE_MIXED: Options = {
-    "ksp_type": "fgmres",
+    "ksp_type": "gmres",
+    "ksp_pc_side": "right",
     "ksp_rtol": 1e-8,
     "ksp_max_it": 1000,
     "ksp_gmres_restart": 200,
@@ -100,6 +103,8 @@ ITERATIVE_MIXED: Options = {
     "fieldsplit_p_pc_type": "sor",
 }
 
+#: a Krylov method inside the fieldsplit (anything but preonly makes the preconditioner nonlinear)
+_INNER_KRYLOV = re.compile(r"^fieldsplit_.+?_ksp_type$")
 _FIELDSPLIT_NAME = re.compile(r"^fieldsplit_(.+?)_(ksp|pc|mat|mg|sub|snes)_")
 #: PCFieldSplit's own field definitions by component or block size (the solver gives u and p as index sets)
 _FIELD_DEFINITIONS = re.compile(r"^pc_fieldsplit_(\d+_fields|block_size|detect_saddle_point)$")
@@ -197,15 +202,25 @@ def _without_others(preset: Options, user: Options) -> Options:
     if user.get("pc_type", options.get("pc_type")) != options.get("pc_type"):
         options = {k: v for k, v in options.items()
                    if not k.startswith(("pc_fieldsplit_", "fieldsplit_", "pc_gamg_", "mg_levels_"))}
-    if str(user.get("ksp_type", "gmres")) not in ("gmres", "fgmres"):
+    if "ksp_type" not in user and options.get("ksp_type") == "gmres" and any(
+            _INNER_KRYLOV.match(k) and str(v) != "preonly" for k, v in user.items()):
+        options["ksp_type"] = "fgmres"  # an inner Krylov solve: the preconditioner varies, so flexible GMRES
+    if str(user.get("ksp_type", options.get("ksp_type"))) not in ("gmres", "fgmres"):
         options.pop("ksp_gmres_restart", None)
+        options.pop("ksp_pc_side", None)
+    if str(options.get("ksp_type")) == "fgmres":
+        options.pop("ksp_pc_side", None)  # FGMRES is right preconditioned only
     return options
 
 
-def vector_rigid_body_modes(space: fem.FunctionSpace) -> list[PETSc.Vec]:
+def vector_rigid_body_modes(space: fem.FunctionSpace, dilation: bool = False) -> list[PETSc.Vec]:
     """The six rigid-body modes of a blocked vector space (block size 3), owned entries, orthonormalised.
 
     Translations e_i, rotations x -> e_k x x about the axes (u_a = -x_b, u_b = x_a), modified Gram-Schmidt.
+    With ``dilation``, a seventh mode u = x - x_c (x_c the centre of the dofs' bounding box): a zero-energy mode
+    of the deviatoric stiffness 2 mu dev(eps):dev(eps) (dev(eps(x)) = dev(I) = 0), which is what the displacement
+    block of the mixed formulation holds when the law's volumetric part is left to the pressure (docs/solvers.md,
+    "The displacement block's near null space").
     """
     imap = space.dofmap.index_map
     bs = space.dofmap.index_map_bs
@@ -213,7 +228,7 @@ def vector_rigid_body_modes(space: fem.FunctionSpace) -> list[PETSc.Vec]:
         raise ValueError(f"rigid-body modes: a vector space of block size 3, got {bs}")
     owned = imap.size_local
     x = space.tabulate_dof_coordinates()[:owned]
-    vectors = [la.create_petsc_vector(imap, bs) for _ in range(6)]
+    vectors = [la.create_petsc_vector(imap, bs) for _ in range(7 if dilation else 6)]
     for i in range(3):  # translations
         with vectors[i].localForm() as local:
             local.array[i:owned * bs:bs] = 1.0
@@ -221,6 +236,16 @@ def vector_rigid_body_modes(space: fem.FunctionSpace) -> list[PETSc.Vec]:
         with vectors[3 + k].localForm() as local:
             local.array[a:owned * bs:bs] = -x[:, b]
             local.array[b:owned * bs:bs] = x[:, a]
+    if dilation:
+        comm = space.mesh.comm
+        low, high = np.full(3, np.inf), np.full(3, -np.inf)
+        if owned:
+            low, high = x[:, :3].min(axis=0), x[:, :3].max(axis=0)
+        comm.Allreduce(MPI.IN_PLACE, low, op=MPI.MIN)
+        comm.Allreduce(MPI.IN_PLACE, high, op=MPI.MAX)
+        with vectors[6].localForm() as local:
+            for i in range(3):
+                local.array[i:owned * bs:bs] = x[:, i] - 0.5 * (low[i] + high[i])
     for i, v in enumerate(vectors):  # modified Gram-Schmidt
         for w in vectors[:i]:
             v.axpy(-w.dot(v), w)
@@ -282,9 +307,9 @@ class MixedFields:
         self.schur_matrix = self._weighted_mass(problem)
 
     def _rigid_body_modes(self) -> list[PETSc.Vec]:
-        """The rigid-body modes of the collapsed u space (vector_rigid_body_modes), laid out like the u field's
-        rows (its index set's order)."""
-        collapsed = vector_rigid_body_modes(self.spaces["u"])
+        """The u block's near null space, laid out like the u field's rows (its index set's order): the six
+        rigid-body modes of the collapsed u space and the dilation (vector_rigid_body_modes(..., dilation=True))."""
+        collapsed = vector_rigid_body_modes(self.spaces["u"], dilation=True)
         order = self.order["u"]
         index_set = self.index_sets["u"]
         out = []

@@ -12,7 +12,7 @@ the intended problem. Two checks, run by model.pipeline.run after build and befo
 
     (J the problem's Jacobian form at u = 0, R its residual form; the mixed formulation solves for
     (du, dp) together), by one LU factorisation (MUMPS) below linear.AUTO_DOFS unknowns and from there by the
-    `iterative` preset of model.solvers.linear (CG + GAMG with the rigid-body modes; FGMRES + the Schur
+    `iterative` preset of model.solvers.linear (CG + GAMG with the rigid-body modes; GMRES + the Schur
     fieldsplit for the mixed formulation) with ksp_rtol ITERATIVE_RTOL = 1e-4, so that the check costs less
     than one Newton step of the run at any size (LU would take longer than the whole iterative run on large
     meshes). The solution must satisfy the system to DIRECT_MISFIT = 1e-6 (LU) or 10 ITERATIVE_RTOL relative,
