@@ -219,7 +219,7 @@ def test_check_takes_the_law_from_the_command_line_and_names_bad_input(tmp_path)
 def test_help_lists_laws_parameters_layouts_and_formats() -> None:
     import forms
 
-    for args in (("--help",), ("emit", "--help"), ("check", "--help")):
+    def help_listing_the_laws(*args: str) -> str:
         run = _verify(*args)
         assert run.returncode == 0, run.stderr
         text = " ".join(run.stdout.split())
@@ -227,15 +227,13 @@ def test_help_lists_laws_parameters_layouts_and_formats() -> None:
             assert f"{name}: " in text
             for p in entry.parameters:
                 assert p.name in text
+        return text
+
+    for args in (("--help",), ("emit", "--help"), ("check", "--help")):
+        text = help_listing_the_laws(*args)
         assert "sigma_max=3e5" in text and "l_star_t=1.03" in text
         for layout in ("ijkl", "hessian9-col", "hessian9-row", "voigt-spatial", "abaqus-ddsdde", "voigt-material"):
             assert layout in text
         assert ".npz" in text and "CSV" in text
-    element = _verify("element", "--help")  # the element's own file format; the laws and their parameters
-    assert element.returncode == 0, element.stderr
-    text = " ".join(element.stdout.split())
-    for name, entry in forms.REGISTRY.items():
-        assert f"{name}: " in text
-        for p in entry.parameters:
-            assert p.name in text
+    text = help_listing_the_laws("element", "--help")  # the element's own file format, the laws, their parameters
     assert "m6=1" in text and "exit codes: 0 agrees" in text
