@@ -16,6 +16,9 @@ fusiform    belly tendon_origin tendon_insertion              origin insertion s
 trunk       trunk                                             base top bark
 arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_insertion b_origin b_insertion
                                                               proximal distal skin
+layered_arm a_belly a_tendon b_belly b_tendon fat               a_origin a_insertion a_lateral a_surface (same for b)
+            (separate bodies, no shared node)                fat_proximal fat_distal fat_skin fat_cavity_a
+                                                              fat_cavity_b fat_surface
 sphere      body                                              surface (octant: xmin ymin zmax surface)
 =========== ================================================ =======================
 
@@ -44,6 +47,7 @@ from meshes.cylinder import cylinder
 from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
 from meshes.fusiform import fusiform
 from meshes.geo import geo_parameters, read_geo
+from meshes.layered_arm import layered_arm
 from meshes.sphere import sphere
 from meshes.trunk import trunk
 
@@ -60,6 +64,7 @@ __all__ = [
     "generate",
     "generator_parameters",
     "geo_parameters",
+    "layered_arm",
     "read_geo",
     "read_msh",
     "sphere",
@@ -76,6 +81,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "sphere": sphere,
     "trunk": trunk,
     "arm_segment": arm_segment,
+    "layered_arm": layered_arm,
 }
 
 

@@ -34,6 +34,7 @@ __all__ = [
     "arm_segment_options",
     "belly_volume",
     "build_arm_segment_model",
+    "check_turn_elements",
 ]
 
 logger = logging.getLogger(__name__)
@@ -117,10 +118,22 @@ def build_arm_segment_model(
         gmsh.model.setPhysicalName(2, tag, name)
 
 
-def arm_segment_options(size: float, tendon_radius: float | None = None) -> dict[str, float]:
+def arm_segment_options(size: float, tendon_radius: float | None = None,
+                        turn_elements: int = CURVATURE_ELEMENTS) -> dict[str, float]:
     """gmsh options used for maximum element size ``size`` (refined on curved surfaces; below
-    ``size = tendon_radius`` the tendons' elements shrink with ``size``: meshes._gmsh.curvature_elements)."""
-    return curved_size_options(size, tendon_radius)
+    ``size = tendon_radius`` the tendons' elements shrink with ``size``: meshes._gmsh.curvature_elements);
+    ``turn_elements`` other than :data:`CURVATURE_ELEMENTS` sets the elements per 2 pi radians itself."""
+    options = curved_size_options(size, tendon_radius)
+    if turn_elements != CURVATURE_ELEMENTS:
+        options["Mesh.MeshSizeFromCurvature"] = turn_elements
+    return options
+
+
+def check_turn_elements(generator: str, turn_elements: object) -> int:
+    """``turn_elements`` as an int >= 6, else :class:`ParameterError` naming the generator."""
+    if isinstance(turn_elements, bool) or not isinstance(turn_elements, int) or turn_elements < 6:
+        raise ParameterError(f"{generator}: turn_elements must be an integer >= 6, got {turn_elements!r}")
+    return turn_elements
 
 
 def _check(length: float, radius: float, rm: float, rt: float, lt: float, spacing: float) -> None:
@@ -149,6 +162,7 @@ def arm_segment(
     tendon_length: float = 0.02,
     spacing: float = 0.024,
     size: float = 0.005,
+    turn_elements: int = CURVATURE_ELEMENTS,
 ) -> MeshData:
     """Mesh two fusiform muscles side by side inside a cylinder of fat (SI metres).
 
@@ -169,7 +183,10 @@ def arm_segment(
         ``x = +spacing / 2`` (muscle b), > ``2 * muscle_radius``.
     size:
         Maximum element size, > 0; curved surfaces are refined to
-        :data:`CURVATURE_ELEMENTS` elements per 2 pi radians.
+        :data:`CURVATURE_ELEMENTS` elements per 2 pi radians (more below ``size = tendon_radius``).
+    turn_elements:
+        Elements per 2 pi radians on curved surfaces, an integer >= 6: the default keeps the rule above, fewer
+        give a coarse, fast mesh (the tendons' 1.6 mm elements dominate the default mesh).
 
     Returns
     -------
@@ -194,9 +211,10 @@ def arm_segment(
     lt = positive_float(_GENERATOR, "tendon_length", tendon_length)
     gap = positive_float(_GENERATOR, "spacing", spacing)
     lc = positive_float(_GENERATOR, "size", size)
+    turns = check_turn_elements(_GENERATOR, turn_elements)
     _check(total, r, rm, rt, lt, gap)
     start = time.perf_counter()
-    with gmsh_session(arm_segment_options(lc, rt), name=_GENERATOR):
+    with gmsh_session(arm_segment_options(lc, rt, turns), name=_GENERATOR):
         build_arm_segment_model(total, r, rm, rt, lt, gap)
         gmsh.model.mesh.generate(3)
         mesh = from_gmsh_model(gmsh.model)

@@ -111,7 +111,7 @@ def muscle() -> MeshData:
 
 
 def test_registry_names() -> None:
-    assert set(GENERATORS) == {"arm_segment", "box", "cylinder", "cook", "fusiform", "sphere", "trunk"}
+    assert set(GENERATORS) == {"arm_segment", "box", "cylinder", "cook", "fusiform", "layered_arm", "sphere", "trunk"}
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
@@ -380,7 +380,7 @@ def test_generate_passes_parameters() -> None:
 @pytest.mark.parametrize(
     ("name", "params", "message"),
     [
-        ("blob", {}, "unknown mesh generator 'blob'; available: arm_segment, box, cook, cylinder, fusiform, sphere"),
+        ("blob", {}, "unknown mesh generator 'blob'; available: arm_segment, box, cook, cylinder, fusiform, layered_arm, sphere"),
         ("cylinder", {"radiu": 1.0}, "cylinder: unknown parameter 'radiu'"),
         ("cylinder", {"radius": -1.0}, "cylinder: radius must be > 0, got -1.0"),
         ("cylinder", {"size": 0}, "cylinder: size must be > 0, got 0.0"),

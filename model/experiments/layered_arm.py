@@ -1,0 +1,198 @@
+"""The layered arm segment against the conforming one (issue 14 item 3).
+
+    conforming, layered = compare_arms(size=0.012, turn_elements=8)
+
+Both runs are examples/arm_segment.toml's loading: two fusiform muscles in a fat cylinder, every end face clamped,
+muscle a activated to 1 and muscle b to 0.3 (ramped with the load factor), the thesis' materials (muscle E 9 MPa,
+tendon 15 MPa, fat 1 MPa, nu 0.45, StVK isotropic part), P1. The conforming run meshes the three bodies as one
+(meshes.arm_segment: the muscles are glued to the fat); the layered run cuts the same mesh open along the
+muscle-fat interfaces (meshes.layered_arm, same nodes) and couples the bodies by model.problem.body_contact:
+
+    fat_cavity_a slides on a_lateral, fat_cavity_b on b_lateral   (zero-length normal springs, k_sliding)
+    a_lateral against b_lateral                                    (frictionless contact, penalty k_contact,
+                                                                    augmented Lagrangian)
+
+Measured (:class:`ArmResult`, the same on every rank): the bulge, i.e. the radial displacement
+u_r = u . (X, Y) / |(X, Y)| of the skin nodes in the middle fifth of the segment (|Z - L/2| <= L/10), its max and
+mean; the skin's displacement at every skin node (both meshes have the same skin nodes); the slip of the fat on
+each muscle, |u_fat - u_muscle| between the two copies of each interface node (zero by construction when glued);
+and per contact pair its report (force on the slave body, penetration, gap, active points) and the smallest
+gap between the muscles.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+
+from model.config import RunConfig, parse
+from model.problem import ElasticityProblem
+
+log = logging.getLogger(__name__)
+
+__all__ = ["ArmResult", "arm_config", "compare_arms", "layered_pairs", "run_arm", "skin_difference"]
+
+#: The segment's length (meshes.arm_segment's default; the bulge band is its middle fifth).
+LENGTH = 0.12
+#: The contact pairs of the layered arm: (name, slave, master, kind).
+PAIRS = (("fat_on_a", "fat_cavity_a", "a_lateral", "sliding"),
+         ("fat_on_b", "fat_cavity_b", "b_lateral", "sliding"),
+         ("a_on_b", "a_lateral", "b_lateral", "contact"))
+
+
+def _muscle(region: str, tendon: str, origin: str, insertion: str, activation: float) -> list[dict[str, Any]]:
+    fibres = {"type": "laplace", "origin": origin, "insertion": insertion, "regions": [region, tendon]}
+    return [{"region": region, "law": "muscle", "isotropic": "stvk", "E": 9.0e6, "nu": 0.45, "fibres": fibres,
+             "activation": [[0.0, 0.0], [1.0, activation]]},
+            {"region": tendon, "law": "tendon", "isotropic": "stvk", "E": 15.0e6, "nu": 0.45, "fibres": fibres}]
+
+
+def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: int = 4) -> RunConfig:
+    """examples/arm_segment.toml (``layered`` False) or its layered twin (the mesh generator layered_arm, its
+    region names; the contact pairs are added by :func:`layered_pairs`), with mesh ``size`` and
+    ``turn_elements``."""
+    if layered:
+        names = {"fat": "fat", "belly_a": "a_belly", "tendon_a": "a_tendon", "belly_b": "b_belly",
+                 "tendon_b": "b_tendon", "proximal": "fat_proximal", "distal": "fat_distal"}
+    else:
+        names = {n: n for n in ("fat", "belly_a", "tendon_a", "belly_b", "tendon_b", "proximal", "distal")}
+    raw: dict[str, Any] = {
+        "mesh": {"generator": "layered_arm" if layered else "arm_segment", "size": size,
+                 "turn_elements": turn_elements},
+        "discretization": {"degree": 1, "quadrature_degree": "auto"},
+        "material": [{"region": names["fat"], "law": "stvk", "E": 1.0e6, "nu": 0.45},
+                     *_muscle(names["belly_a"], names["tendon_a"], "a_origin", "a_insertion", 1.0),
+                     *_muscle(names["belly_b"], names["tendon_b"], "b_origin", "b_insertion", 0.3)],
+        "boundary": [{"on": on, "type": "displacement", "value": [0.0, 0.0, 0.0]}
+                     for on in (names["proximal"], names["distal"], "a_origin", "a_insertion", "b_origin",
+                                "b_insertion")],
+        "loading": {"steps": steps},
+    }
+    return parse(raw)
+
+
+def layered_pairs(problem: ElasticityProblem, k_sliding: float, k_contact: float,
+                  tolerance: float = 1e-6) -> dict[str, Any]:
+    """The layered arm's :data:`PAIRS` as model.problem.body_contact.BodyContact objects, by name."""
+    from model.problem.body_contact import BodyContact
+
+    pairs = {}
+    for name, slave, master, kind in PAIRS:
+        contact = kind == "contact"
+        pairs[name] = BodyContact(problem, slave, master, k_contact if contact else k_sliding, kind=kind, name=name,
+                                  augmented=contact, tolerance=tolerance)
+    return pairs
+
+
+def _nodes_on(problem: ElasticityProblem, boundary: str) -> tuple[np.ndarray, np.ndarray]:
+    """Reference coordinates and displacements of the nodes of ``boundary``, every rank's, sorted by coordinates
+    (the same arrays on every rank). Collective."""
+    from dolfinx import fem
+
+    V = problem.space
+    msh = problem.domain.mesh
+    fdim = msh.topology.dim - 1
+    blocks = np.asarray(fem.locate_dofs_topological(V, fdim, problem.domain.boundary_facets(boundary)))
+    blocks = blocks[blocks < V.dofmap.index_map.size_local]
+    X = V.tabulate_dof_coordinates()[blocks, :3]
+    u = problem.solution.x.array.reshape(-1, 3)[blocks]
+    parts = msh.comm.allgather((X, u))
+    X = np.concatenate([p[0] for p in parts])
+    u = np.concatenate([p[1] for p in parts])
+    order = np.lexsort(np.round(X / LENGTH, 9).T[::-1])
+    return X[order], u[order]
+
+
+@dataclass
+class ArmResult:
+    """One run's measurements (module docstring), the same on every rank."""
+
+    layered: bool
+    cells: int
+    dofs: int
+    completed: bool
+    newton_iterations: list[int]
+    skin_X: np.ndarray
+    skin_u: np.ndarray
+    bulge_max: float
+    bulge_mean: float
+    slip: dict[str, dict[str, float]] = field(default_factory=dict)
+    pairs: dict[str, dict[str, Any]] = field(default_factory=dict)
+    muscle_gap: float = float("nan")
+    seconds: float = 0.0
+
+
+def _bulge(X: np.ndarray, u: np.ndarray) -> tuple[float, float]:
+    middle = np.abs(X[:, 2] - 0.5 * LENGTH) <= 0.1 * LENGTH
+    radial = X[middle, :2] / np.linalg.norm(X[middle, :2], axis=1, keepdims=True)
+    ur = np.einsum("ij,ij->i", u[middle, :2], radial)
+    return float(ur.max()), float(ur.mean())
+
+
+def _slip(problem: ElasticityProblem, fat: str, muscle: str) -> dict[str, float]:
+    """|u_fat - u_muscle| between the two copies of each interface node (matched by coordinates): max, mean."""
+    Xf, uf = _nodes_on(problem, fat)
+    Xm, um = _nodes_on(problem, muscle)
+    if Xf.shape != Xm.shape or not np.allclose(Xf, Xm, rtol=0.0, atol=1e-12):
+        raise RuntimeError(f"{fat} and {muscle} do not have the same nodes")
+    d = np.linalg.norm(uf - um, axis=1)
+    return {"max": float(d.max()), "mean": float(d.mean()), "nodes": int(len(d))}
+
+
+def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: int = 4, k_sliding: float = 1e10,
+            k_contact: float = 1e10, comm: MPI.Comm = MPI.COMM_WORLD) -> ArmResult:
+    """Run the conforming (``layered`` False) or the layered arm to full activation and measure it (module
+    docstring). Collective."""
+    import time
+
+    from model.pipeline import build, make_solver
+    from model.solvers.contact import UzawaSolver
+    from model.solvers.loadstepping import step_loads
+
+    start = time.perf_counter()
+    config = arm_config(layered, size, turn_elements, steps)
+    setup = build(config, comm)
+    problem = setup.problem
+    pairs = layered_pairs(problem, k_sliding, k_contact) if layered else {}
+    newton = make_solver(problem, config)
+    solver = UzawaSolver(newton, [pairs["a_on_b"]]) if layered else newton
+    records: list[Any] = []
+    outcome = step_loads(solver, steps, on_step=records.append)
+    iterations = [int(r.result.iterations) for r in records if r.result.converged]
+    skin = "fat_skin" if layered else "skin"
+    X, u = _nodes_on(problem, skin)
+    bulge_max, bulge_mean = _bulge(X, u)
+    msh = problem.domain.mesh
+    result = ArmResult(layered, msh.topology.index_map(3).size_global, problem.space.dofmap.index_map.size_global * 3,
+                       bool(outcome.completed), iterations, X, u, bulge_max, bulge_mean)
+    if layered:
+        result.slip = {"a": _slip(problem, "fat_cavity_a", "a_lateral"),
+                       "b": _slip(problem, "fat_cavity_b", "b_lateral")}
+        result.pairs = {name: pair.report() for name, pair in pairs.items()}
+        gaps = pairs["a_on_b"].nodal_gaps()
+        result.muscle_gap = float(comm.allreduce(float(gaps.min(initial=np.inf)), op=MPI.MIN))
+    solver.destroy()
+    result.seconds = time.perf_counter() - start
+    log.info("%s arm: %d cells, Newton %s, bulge max %.4g mean %.4g m in %.1f s",
+             "layered" if layered else "conforming", result.cells, iterations, bulge_max, bulge_mean, result.seconds)
+    return result
+
+
+def skin_difference(conforming: ArmResult, layered: ArmResult) -> dict[str, float]:
+    """max and root-mean-square |u_layered - u_conforming| over the skin nodes (the same nodes), and the max
+    |u_conforming| there."""
+    if conforming.skin_X.shape != layered.skin_X.shape or \
+            not np.allclose(conforming.skin_X, layered.skin_X, rtol=0.0, atol=1e-12):
+        raise ValueError("the two runs do not have the same skin nodes (not the same mesh parameters)")
+    d = np.linalg.norm(layered.skin_u - conforming.skin_u, axis=1)
+    return {"max": float(d.max()), "rms": float(np.sqrt(np.mean(d**2))),
+            "max_conforming": float(np.linalg.norm(conforming.skin_u, axis=1).max())}
+
+
+def compare_arms(**kwargs: Any) -> tuple[ArmResult, ArmResult]:
+    """:func:`run_arm` conforming and layered with the same keyword arguments. Collective."""
+    return run_arm(False, **kwargs), run_arm(True, **kwargs)
