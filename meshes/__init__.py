@@ -17,6 +17,8 @@ trunk       trunk                                             base top bark
 arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_insertion b_origin b_insertion
                                                               proximal distal skin
 sphere      body                                              surface (octant: xmin ymin zmax surface)
+stacked_    lower upper (two separate bodies, one on the      <body>_xmin ... <body>_zmax, <body>_surface
+blocks      other: contact between bodies)
 =========== ================================================ =======================
 
 A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
@@ -38,6 +40,7 @@ from typing import Any
 
 from meshes._validate import ParameterError
 from meshes.arm_segment import arm_segment
+from meshes.blocks import stacked_blocks
 from meshes.box import box
 from meshes.cook import cook
 from meshes.cylinder import cylinder
@@ -63,6 +66,7 @@ __all__ = [
     "read_geo",
     "read_msh",
     "sphere",
+    "stacked_blocks",
     "trunk",
     "write_msh",
 ]
@@ -76,6 +80,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "sphere": sphere,
     "trunk": trunk,
     "arm_segment": arm_segment,
+    "stacked_blocks": stacked_blocks,
 }
 
 
