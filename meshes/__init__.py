@@ -20,6 +20,8 @@ layered_arm a_belly a_tendon b_belly b_tendon fat               a_origin a_inser
             (separate bodies, no shared node)                fat_proximal fat_distal fat_skin fat_cavity_a
                                                               fat_cavity_b fat_surface
 sphere      body                                              surface (octant: xmin ymin zmax surface)
+stacked_    lower upper (two separate bodies, one on the      <body>_xmin ... <body>_zmax, <body>_surface
+blocks      other: contact between bodies)
 =========== ================================================ =======================
 
 A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
@@ -41,6 +43,7 @@ from typing import Any
 
 from meshes._validate import ParameterError
 from meshes.arm_segment import arm_segment
+from meshes.blocks import stacked_blocks
 from meshes.box import box
 from meshes.cook import cook
 from meshes.cylinder import cylinder
@@ -68,6 +71,7 @@ __all__ = [
     "read_geo",
     "read_msh",
     "sphere",
+    "stacked_blocks",
     "trunk",
     "write_msh",
 ]
@@ -82,6 +86,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "trunk": trunk,
     "arm_segment": arm_segment,
     "layered_arm": layered_arm,
+    "stacked_blocks": stacked_blocks,
 }
 
 

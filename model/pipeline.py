@@ -644,9 +644,12 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             step["reactions"] = reactions(problem, residual)
             residual.destroy()
             if setup.contacts:
-                from model.problem.contact import contact_report
+                from model.problem.contact import contact_report, pair_reports
 
                 step["contact"] = contact_report(setup.contacts)
+                pairs = pair_reports(setup.contacts)
+                if pairs:
+                    step["contact_pairs"] = pairs
             if setup.sliding:
                 step["sliding"] = {c.surface: {"max_gap": c.max_gap(), "force": c.force()} for c in setup.sliding}
             writer.write_step(t)

@@ -111,7 +111,8 @@ def muscle() -> MeshData:
 
 
 def test_registry_names() -> None:
-    assert set(GENERATORS) == {"arm_segment", "box", "cylinder", "cook", "fusiform", "layered_arm", "sphere", "trunk"}
+    assert set(GENERATORS) == {"arm_segment", "box", "cylinder", "cook", "fusiform", "layered_arm", "sphere",
+                               "stacked_blocks", "trunk"}
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
@@ -196,6 +197,26 @@ def test_cylinder_default() -> None:
     assert np.allclose(face_points(mesh, "top")[:, 2], length, atol=1e-9)
     lateral = face_points(mesh, "lateral")
     assert np.allclose(np.hypot(lateral[:, 0], lateral[:, 1]), radius, atol=1e-6)
+
+
+# --- stacked blocks -----------------------------------------------------------------------------
+
+
+def test_stacked_blocks_are_two_bodies() -> None:
+    """Two boxes, one on the other with a gap, sharing no node; each face named <body>_<face> (and every boundary
+    triangle also in <body>_surface, meshes.combine: not in SMALL, whose check wants each triangle named once)."""
+    mesh = generate("stacked_blocks", size=(1.0, 2.0, 0.5), cells=(2, 2, 1), gap=0.1)
+    assert_valid(mesh)
+    assert set(mesh.region_names) == {"lower", "upper"}
+    assert {"lower_zmax", "upper_zmin", "lower_surface", "upper_surface"} <= set(mesh.boundary_names)
+    assert mesh.volume() == pytest.approx(2 * 1.0 * 2.0 * 0.5, rel=1e-12)
+    assert np.allclose(face_points(mesh, "lower_zmax")[:, 2], 0.5)
+    assert np.allclose(face_points(mesh, "upper_zmin")[:, 2], 0.6)
+    lower = np.unique(mesh.cells[mesh.cell_tags == mesh.region_names["lower"]])
+    upper = np.unique(mesh.cells[mesh.cell_tags == mesh.region_names["upper"]])
+    assert len(np.intersect1d(lower, upper)) == 0
+    with pytest.raises(ParameterError, match="stacked_blocks: gap"):
+        generate("stacked_blocks", gap=-0.1)
 
 
 # --- fusiform -----------------------------------------------------------------------------------

@@ -1,7 +1,11 @@
-"""[[contact]]: frictionless contact of a boundary of the body with a rigid obstacle (ContactSpec).
+"""[[contact]]: frictionless contact of a boundary of the body with a rigid obstacle, or of two bodies (ContactSpec).
 
-The surface name is checked against the mesh later (model.problem.contact.build_contact), still before
-any solve; ``bone`` against the [[bone]] tables by model.config.document.
+With ``master`` (a boundary of another body of the same mesh) the contact is between deformable bodies
+(model.problem.body_contact.BodyContact: penalty, optionally augmented Lagrangian, or ``sliding`` = true, the
+thesis' zero-length normal springs); ``master`` excludes ``obstacle``, ``bone`` and the shape keys.
+
+The surface (and master) names are checked against the mesh later (model.problem.contact.build_contact), still
+before any solve; ``bone`` against the [[bone]] tables and P1 (contact between bodies) by model.config.document.
 """
 
 from __future__ import annotations
@@ -24,19 +28,31 @@ def _contact_schema(schema: dict[str, Any]) -> None:
     """The obstacle's keys by kind; a contact on a bone may leave them out (it takes the bone's shape)."""
     shape_keys_schema(schema)
     schema["required"] = [k for k in schema.get("required", []) if k != "obstacle"]
-    schema["anyOf"] = [{"required": ["obstacle"]}, {"required": ["bone"]}]
+    schema["anyOf"] = [{"required": ["obstacle"]}, {"required": ["bone"]}, {"required": ["master"]}]
+    schema.setdefault("allOf", []).append(
+        {"if": {"required": ["master"]},
+         "then": {"properties": {k: False for k in ("obstacle", "bone", *ALL_SHAPE_KEYS)}},
+         "else": {"properties": {"sliding": False}}})
 
 
 class ContactSpec(Variant):
     """[[contact]]: the boundary ``surface`` of the body stays on the free side of a rigid obstacle: exactly
     (method = "vi", a plane along a coordinate axis) or by a penalty (method = "penalty", optionally
-    augmented Lagrangian). The obstacle is given by its keys, or is the shape of ``bone`` (and moves with it)."""
+    augmented Lagrangian). The obstacle is given by its keys, or is the shape of ``bone`` (and moves with it).
+    With ``master`` instead: contact (or, ``sliding`` = true, sliding) of the surface on the boundary ``master``
+    of another body of the same mesh (method = "penalty", P1)."""
 
     model_config = {"json_schema_extra": _contact_schema}
     kind_key = "method"
 
-    surface: Name = key("name of the boundary of the body that touches the obstacle")
+    surface: Name = key("name of the boundary of the body that touches the obstacle (with master: the slave "
+                        "boundary, whose nodes are checked against master)")
     method: str = key("how non-penetration is enforced")
+    master: Name | None = key("name of a boundary of another body of the same mesh: contact between deformable "
+                              "bodies (surface's nodes against master's deformed triangles; no obstacle or bone)",
+                              default=None)
+    sliding: Flag = key("master only: the surface stays on master and slides along it (zero-length normal "
+                        "springs, (k/2) g^2; false: contact, (k/2) min(g, 0)^2)", default=False)
     bone: Name | None = key("name of a [[bone]]: the obstacle moves with it (and is its shape when obstacle is not "
                             "given)", default=None)
     penalty: Positive | None = key("penalty stiffness k per unit reference area and unit penetration",
@@ -56,7 +72,43 @@ class ContactSpec(Variant):
     radius: Positive | None = key("obstacle = \"sphere\" or \"capsule\": the radius", "m (length)", default=None)
     a: Point | None = key("obstacle = \"capsule\": one end of the capsule's segment", "m (length)", default=None)
     b: Point | None = key("obstacle = \"capsule\": the other end", "m (length)", default=None)
-    obstacle: ObstacleField = key("the obstacle's shape (with its keys above); after validation the obstacle itself")
+    obstacle: ObstacleField = key("the obstacle's shape (with its keys above); after validation the obstacle itself",
+                                  default=None)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _master_or_obstacle(cls, data: Any) -> Any:
+        """master excludes the obstacle, its bone and its shape keys; without master an obstacle (or bone)."""
+        if isinstance(data, dict):
+            if "master" in data:
+                if data.get("method", "penalty") != "penalty":
+                    fail(f"contact between bodies (master) needs method = \"penalty\", not {data['method']!r}",
+                         "method")
+                for k in ("bone", "obstacle", *ALL_SHAPE_KEYS):
+                    if k in data:
+                        fail("not with master (contact between two bodies has no rigid obstacle)", k)
+            else:
+                if "sliding" in data:
+                    fail("only with master = \"<boundary of another body>\" (sliding between bodies)", "sliding")
+                if "obstacle" not in data and "bone" not in data:
+                    fail("missing (give obstacle = \"plane\" | \"sphere\" | \"capsule\", a bone, or master = a "
+                         "boundary of another body)", "obstacle")
+        return data
+
+    @model_validator(mode="after")
+    def _between_bodies(self) -> ContactSpec:
+        if self.master is None:
+            return self
+        if self.master == self.surface:
+            fail(f"must differ from surface ({self.surface!r}): contact between two bodies' boundaries", "master")
+        if self.method != "penalty":
+            fail(f"contact between bodies (master) needs method = \"penalty\", not {self.method!r}", "method")
+        if self.sliding and self.augmented:
+            fail("not with sliding = true (the sliding springs hold both ways; Uzawa updates are for contact)",
+                 "augmented")
+        if self.quadrature_degree not in (None, "vertex"):
+            fail("contact between bodies always uses the nodal rule (\"vertex\"): leave it out", "quadrature_degree")
+        return self
 
     @property
     def spec(self) -> ContactSpec:
@@ -76,6 +128,8 @@ class VIContact(ContactSpec):
 
     @model_validator(mode="after")
     def _axis_plane(self) -> VIContact:
+        if self.master is not None:
+            fail("contact between bodies (master) needs method = \"penalty\", not \"vi\"", "method")
         if self.obstacle is None:
             return self
         if not isinstance(self.obstacle, Plane):
@@ -93,7 +147,8 @@ class PenaltyContact(ContactSpec):
     """method = "penalty": the energy (k/2) min(g, 0)^2 per unit reference area (g the gap), or with
     augmented = true its augmented Lagrangian with Uzawa updates."""
 
-    keys = (*_SHAPE_AND_COMMON, "penalty", "augmented", "tolerance", "max_uzawa", "quadrature_degree")
+    keys = (*_SHAPE_AND_COMMON, "master", "sliding", "penalty", "augmented", "tolerance", "max_uzawa",
+            "quadrature_degree")
     method: Literal["penalty"] = key("a penalty energy on the penetration")
     penalty: Positive = key("the penalty stiffness k > 0, per unit reference area and unit penetration",
                             "Pa/m (stress per length)")

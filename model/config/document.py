@@ -77,7 +77,8 @@ class RunConfig(Section):
     output: OutputConfig = key("results folder and formats", default_factory=OutputConfig)
     bones: Annotated[tuple[BoneConfig, ...], AfterValidator(_unique_names)] = key(
         "rigid bones: motions and shapes", default=(), alias="bone")
-    contacts: tuple[Contact, ...] = key("contacts with rigid obstacles", default=(), alias="contact")
+    contacts: tuple[Contact, ...] = key("contacts with rigid obstacles, and between bodies (master)", default=(),
+                                        alias="contact")
     dynamics: DynamicsSpec = key("time integration (default: quasi-static)", default_factory=DynamicsSpec)
     units: UnitsConfig = key("the system of units the numbers are in (labels only)", default_factory=UnitsConfig)
     parameters: Parameters = key(
@@ -137,7 +138,24 @@ class RunConfig(Section):
                      "scheme")
         if self.contacts and self.solver.method != "newton":
             fail("contact needs method = \"newton\"", "solver", "method")
+        self._check_body_contacts()
         return self
+
+    def _check_body_contacts(self) -> None:
+        """Contact between bodies pairs nodes with triangles: P1 displacements only; each pair once."""
+        pairs: dict[tuple[str, str], int] = {}
+        degree, formulation = self.discretization.degree, self.discretization.formulation
+        for i, c in enumerate(self.contacts):
+            if c.master is None:
+                continue
+            if degree != 1 or formulation != "displacement":
+                fail(f"contact between bodies needs P1 displacements (discretization.degree = 1, formulation = "
+                     f"\"displacement\"), got degree {degree}, {formulation!r}", "contact", i, "master")
+            pair = (c.surface, c.master)
+            if pair in pairs:
+                fail(f"the pair {c.surface!r} on {c.master!r} is already contact[{pairs[pair]}]", "contact", i,
+                     "master")
+            pairs[pair] = i
 
     def _check_parameters_used(self) -> None:
         """A parameter no expression uses is most likely misspelt (a sweep over it would repeat one run)."""

@@ -131,6 +131,10 @@ class BodyContact:
         self.slave_blocks = blocks[blocks < owned]
         self.reference = V.tabulate_dof_coordinates()[:, :3]
         self._master_setup(fdim)
+        shared = np.intersect1d(self.slave_blocks, self.master_local.ravel())
+        if self.comm.allreduce(len(shared), op=MPI.SUM):
+            raise ValueError(f"master: {master!r} shares nodes with {slave!r} (give a boundary of another body: "
+                             "meshes.combine keeps bodies apart)")
         # the master point data at the slave nodes: X*, n and z (master displacement there)
         self.X_star, self.normal, self.z = (fem.Function(V, name=n) for n in ("X_star", "normal", "z_master"))
         self.k = fem.Constant(msh, PETSc.ScalarType(k))
@@ -164,8 +168,8 @@ class BodyContact:
         # this energy with a new TestFunction, gave that test function another hash than the problem's earlier
         # ones on dolfinx 0.5 ("Found different Arguments with same number and part")
         self._ufl = {"Rz": dz, "Kuz": ufl.derivative(ufl.derivative(energy, u, v), self.z, w),
-                     "Kzz": ufl.derivative(dz, self.z, w), **{f"force{i}": pressure * self.normal[i] * ds
-                                                              for i in range(3)}}
+                     "Kzz": ufl.derivative(dz, self.z, w), "normal_force": pressure * ds,
+                     **{f"force{i}": pressure * self.normal[i] * ds for i in range(3)}}
         self._compiled: dict[str, Any] = {}
         self._stamp: np.ndarray | None = None
         self.Pi: PETSc.Mat | None = None
@@ -357,7 +361,8 @@ class BodyContact:
     # --- report -------------------------------------------------------------------------------------------
     def report(self) -> dict[str, Any]:
         """max_penetration (max(0, -min g) over the slave nodes), max_gap (max(0, max g)), force on the slave body
-        (int p n dA, p = -k min(g, 0); sliding: p = -k g), active_points (slave nodes with g < 0), the same on
+        (int p n dA, p = -k min(g, 0), augmented max(lambda - k g, 0); sliding: p = -k g), normal_force (the total
+        normal force int p dA: > 0 pressing), active_points (slave nodes with g < 0; augmented: p > 0), the same on
         every rank."""
         gap = self.nodal_gaps()
         low = self.comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)
@@ -367,8 +372,16 @@ class BodyContact:
         active = self.comm.allreduce(int(np.sum(pressed)), op=MPI.SUM)
         force = [float(self.comm.allreduce(fem.assemble_scalar(self._form(f"force{i}")), op=MPI.SUM))
                  for i in range(3)]
-        return {"pair": self.name, "kind": self.kind, "max_penetration": max(0.0, -low), "max_gap": max(0.0, high),
-                "force": force, "active_points": active}
+        normal = float(self.comm.allreduce(fem.assemble_scalar(self._form("normal_force")), op=MPI.SUM))
+        return {"pair": self.name, "kind": self.kind, "surface": self.slave, "master": self.master,
+                "max_penetration": max(0.0, -low), "max_gap": max(0.0, high), "force": force,
+                "normal_force": normal, "active_points": active}
+
+    def contact_report(self) -> dict[str, Any]:
+        """{"max_penetration", "force", "active_points"} as the rigid contacts give it
+        (model.problem.contact.contact_report); ``report`` has the rest."""
+        report = self.report()
+        return {k: report[k] for k in ("max_penetration", "force", "active_points")}
 
 
 __all__ = ["BodyContact", "KINDS", "closest_points_on_triangles"]

@@ -66,13 +66,14 @@ from model import compat
 from model.config.contact import ContactSpec
 from model.errors import ConfigError
 from model.problem import ElasticityProblem
+from model.problem.body_contact import BodyContact
 from model.problem.bones import MovingFrame, SurfaceNodes, body_size, current_position, surface_measure
 
 log = logging.getLogger(__name__)
 
 
 __all__ = ["AugmentedLagrangianContact", "Contact", "PenaltyContact", "VIContact", "build_contact",
-           "contact_report"]
+           "contact_report", "pair_reports"]
 
 
 # --- the methods ----------------------------------------------------------------------------------
@@ -285,15 +286,45 @@ def _positive(value: Any, key: str) -> None:
         raise ValueError(f"{key} must be a finite number > 0, got {value!r}")
 
 
-Contact = PenaltyContact | AugmentedLagrangianContact | VIContact
+Contact = PenaltyContact | AugmentedLagrangianContact | VIContact | BodyContact
 
 
 def contact_report(contacts: Sequence[Contact]) -> dict[str, Any]:
-    """One report for all contacts: the largest penetration, the summed force and active points."""
+    """One report for all contacts: the largest penetration, the summed force and active points (a contact
+    between bodies counts with the force on its surface's body; pair_reports has each pair)."""
     reports = [c.contact_report() for c in contacts]
     return {"max_penetration": max((r["max_penetration"] for r in reports), default=0.0),
             "force": [float(sum(r["force"][i] for r in reports)) for i in range(3)],
             "active_points": int(sum(r["active_points"] for r in reports))}
+
+
+def pair_reports(contacts: Sequence[Contact]) -> dict[str, dict[str, Any]]:
+    """Per contact between bodies, by its pair name "<surface>-<master>": surface, master, kind (contact or
+    sliding), max_penetration, max_gap, force (on the surface's body), normal_force (int p dA), active_points
+    (model.problem.body_contact.BodyContact.report; the same on every rank)."""
+    out = {}
+    for c in contacts:
+        if isinstance(c, BodyContact):
+            report = c.report()
+            out[report.pop("pair")] = report
+    return out
+
+
+def _body_contact(problem: ElasticityProblem, spec: ContactSpec, key: str) -> BodyContact:
+    """A [[contact]] with master: model.problem.body_contact.BodyContact (contact, or sliding = true)."""
+    assert spec.master is not None and spec.penalty is not None
+    error = problem.domain.boundary_error(spec.master)
+    if error:
+        raise ConfigError(f"{key}.master: {error}")
+    if problem.formulation != "displacement" or problem.degree != 1:
+        raise ConfigError(f"{key}.master: contact between bodies needs P1 displacements (discretization.degree = 1, "
+                          f"formulation = \"displacement\")")
+    try:
+        return BodyContact(problem, spec.surface, spec.master, spec.penalty,
+                           kind="sliding" if spec.sliding else "contact", name=f"{spec.surface}-{spec.master}",
+                           augmented=spec.augmented, tolerance=spec.tolerance, max_uzawa=spec.max_uzawa)
+    except ValueError as err:
+        raise ConfigError(f"{key}.{err}") from None
 
 
 def build_contact(problem: ElasticityProblem, spec: ContactSpec, motion: RigidMotion | None = None,
@@ -301,11 +332,14 @@ def build_contact(problem: ElasticityProblem, spec: ContactSpec, motion: RigidMo
     """The contact object of a checked spec, its energy added to the problem (call before the solver).
 
     ``motion`` moves the obstacle (forms.motions; default: stationary). An unknown surface raises
-    ConfigError naming ``key``.surface.
+    ConfigError naming ``key``.surface (``key``.master for a master boundary). With ``master``: a
+    model.problem.body_contact.BodyContact between the two bodies.
     """
     error = problem.domain.boundary_error(spec.surface)
     if error:
         raise ConfigError(f"{key}.surface: {error}")
+    if spec.master is not None:
+        return _body_contact(problem, spec, key)
     if spec.method == "vi":
         return VIContact(problem, spec.surface, spec.obstacle, motion)  # type: ignore[arg-type]
     assert spec.penalty is not None

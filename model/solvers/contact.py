@@ -19,6 +19,7 @@ from petsc4py import PETSc
 
 from model import compat
 from model.problem import ElasticityProblem
+from model.problem.body_contact import BodyContact
 from model.problem.contact import AugmentedLagrangianContact, Contact, VIContact
 from model.solvers.newton import NewtonSolver, SolveResult
 
@@ -122,7 +123,8 @@ class UzawaSolver:
     holds the rounds of the last solve.
     """
 
-    def __init__(self, newton: NewtonSolver | VISolver, contacts: Sequence[AugmentedLagrangianContact]) -> None:
+    def __init__(self, newton: NewtonSolver | VISolver,
+                 contacts: Sequence[AugmentedLagrangianContact | BodyContact]) -> None:
         self.newton = newton
         self.problem = newton.problem
         self.contacts = list(contacts)
@@ -193,12 +195,14 @@ def make_contact_solver(problem: ElasticityProblem, contacts: Sequence[Contact],
 
     VI contacts: VISolver, a NewtonSolver with snes_type vinewtonrsls (VI_OPTIONS; a user snes_type
     must be a VI type) and the bounds of every VI contact (the tightest wins), with the predictor
-    unless ``predictor`` is False. Augmented Lagrangian contacts: wrapped in UzawaSolver. Penalty
-    contacts need nothing (their energy is in the residual): a plain NewtonSolver. ``objective``: NewtonSolver's.
+    unless ``predictor`` is False. Augmented Lagrangian contacts (with rigid obstacles, or between bodies:
+    BodyContact with augmented = True): wrapped in UzawaSolver. Penalty contacts (and sliding) need
+    nothing (their energy is in the residual): a plain NewtonSolver. ``objective``: NewtonSolver's.
     """
     options = dict(options or {})
     vi = [c for c in contacts if isinstance(c, VIContact)]
-    augmented = [c for c in contacts if isinstance(c, AugmentedLagrangianContact)]
+    augmented = [c for c in contacts if isinstance(c, AugmentedLagrangianContact)
+                 or (isinstance(c, BodyContact) and c.augmented)]
     bounds = None
     if vi:
         given = options.get("snes_type")
