@@ -6,7 +6,8 @@ Both runs are examples/arm_segment.toml's loading: two fusiform muscles in a fat
 muscle a activated to 1 and muscle b to 0.3 (ramped with the load factor), the thesis' materials (muscle E 9 MPa,
 tendon 15 MPa, fat 1 MPa, nu 0.45, StVK isotropic part), P1. The conforming run meshes the three bodies as one
 (meshes.arm_segment: the muscles are glued to the fat); the layered run cuts the same mesh open along the
-muscle-fat interfaces (meshes.layered_arm, same nodes) and couples the bodies by model.problem.body_contact:
+muscle-fat interfaces (meshes.layered_arm, same nodes) and couples the bodies by [[contact]] pairs between
+bodies (model.problem.body_contact), as examples/layered_arm.toml:
 
     fat_cavity_a slides on a_lateral, fat_cavity_b on b_lateral   (zero-length normal springs, k_sliding)
     a_lateral against b_lateral                                    (frictionless contact, penalty k_contact,
@@ -34,7 +35,7 @@ from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ArmResult", "arm_config", "compare_arms", "layered_pairs", "run_arm", "skin_difference"]
+__all__ = ["PAIRS", "ArmResult", "arm_config", "compare_arms", "run_arm", "skin_difference"]
 
 #: The segment's length (meshes.arm_segment's default; the bulge band is its middle fifth).
 LENGTH = 0.12
@@ -51,9 +52,11 @@ def _muscle(region: str, tendon: str, origin: str, insertion: str, activation: f
             {"region": tendon, "law": "tendon", "isotropic": "stvk", "E": 15.0e6, "nu": 0.45, "fibres": fibres}]
 
 
-def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: int = 4) -> RunConfig:
-    """examples/arm_segment.toml (``layered`` False) or its layered twin (the mesh generator layered_arm, its
-    region names; the contact pairs are added by :func:`layered_pairs`), with mesh ``size`` and
+def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: int = 4,
+               k_sliding: float = 1e10, k_contact: float = 1e10, tolerance: float = 1e-6) -> RunConfig:
+    """examples/arm_segment.toml (``layered`` False) or its layered twin examples/layered_arm.toml (the mesh
+    generator layered_arm, its region names, the [[contact]] pairs :data:`PAIRS` with penalties ``k_sliding`` and
+    ``k_contact``, the muscles' contact augmented to ``tolerance`` x size), with mesh ``size`` and
     ``turn_elements``."""
     if layered:
         names = {"fat": "fat", "belly_a": "a_belly", "tendon_a": "a_tendon", "belly_b": "b_belly",
@@ -72,20 +75,14 @@ def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, step
                                 "b_insertion")],
         "loading": {"steps": steps},
     }
+    if layered:
+        raw["contact"] = [{"surface": slave, "master": master, "method": "penalty",
+                           **({"penalty": k_contact, "augmented": True, "tolerance": tolerance} if kind == "contact"
+                              else {"penalty": k_sliding, "sliding": True})}
+                          for _, slave, master, kind in PAIRS]
+        # the lagged pairing converges linearly (model.problem.body_contact: the nodal normals)
+        raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8}}
     return parse(raw)
-
-
-def layered_pairs(problem: ElasticityProblem, k_sliding: float, k_contact: float,
-                  tolerance: float = 1e-6) -> dict[str, Any]:
-    """The layered arm's :data:`PAIRS` as model.problem.body_contact.BodyContact objects, by name."""
-    from model.problem.body_contact import BodyContact
-
-    pairs = {}
-    for name, slave, master, kind in PAIRS:
-        contact = kind == "contact"
-        pairs[name] = BodyContact(problem, slave, master, k_contact if contact else k_sliding, kind=kind, name=name,
-                                  augmented=contact, tolerance=tolerance)
-    return pairs
 
 
 def _nodes_on(problem: ElasticityProblem, boundary: str) -> tuple[np.ndarray, np.ndarray]:
@@ -150,16 +147,14 @@ def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: 
     import time
 
     from model.pipeline import build, make_solver
-    from model.solvers.contact import UzawaSolver
     from model.solvers.loadstepping import step_loads
 
     start = time.perf_counter()
-    config = arm_config(layered, size, turn_elements, steps)
+    config = arm_config(layered, size, turn_elements, steps, k_sliding, k_contact)
     setup = build(config, comm)
     problem = setup.problem
-    pairs = layered_pairs(problem, k_sliding, k_contact) if layered else {}
-    newton = make_solver(problem, config)
-    solver = UzawaSolver(newton, [pairs["a_on_b"]]) if layered else newton
+    pairs = {name: setup.contacts[i] for i, (name, *_) in enumerate(PAIRS)} if layered else {}
+    solver = make_solver(problem, config, setup.contacts)
     records: list[Any] = []
     outcome = step_loads(solver, steps, on_step=records.append)
     iterations = [int(r.result.iterations) for r in records if r.result.converged]
