@@ -19,6 +19,8 @@ arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_inserti
 sphere      body                                              surface (octant: xmin ymin zmax surface)
 stacked_    lower upper (two separate bodies, one on the      <body>_xmin ... <body>_zmax, <body>_surface
 blocks      other: contact between bodies)
+sphere_pair upper lower (two ball octants touching at the     <body>_xmin <body>_ymin upper_zmax lower_zmin
+            origin: Hertz contact of deformable spheres)      <body>_sphere <body>_surface
 =========== ================================================ =======================
 
 A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
@@ -47,7 +49,7 @@ from meshes.cylinder import cylinder
 from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
 from meshes.fusiform import fusiform
 from meshes.geo import geo_parameters, read_geo
-from meshes.sphere import sphere
+from meshes.sphere import sphere, sphere_pair
 from meshes.trunk import trunk
 
 __all__ = [
@@ -66,6 +68,7 @@ __all__ = [
     "read_geo",
     "read_msh",
     "sphere",
+    "sphere_pair",
     "stacked_blocks",
     "trunk",
     "write_msh",
@@ -81,6 +84,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "trunk": trunk,
     "arm_segment": arm_segment,
     "stacked_blocks": stacked_blocks,
+    "sphere_pair": sphere_pair,
 }
 
 
