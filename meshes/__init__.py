@@ -22,6 +22,8 @@ layered_arm a_belly a_tendon b_belly b_tendon fat               a_origin a_inser
 sphere      body                                              surface (octant: xmin ymin zmax surface)
 stacked_    lower upper (two separate bodies, one on the      <body>_xmin ... <body>_zmax, <body>_surface
 blocks      other: contact between bodies)
+sphere_pair upper lower (two ball octants touching at the     <body>_xmin <body>_ymin upper_zmax lower_zmin
+            origin: Hertz contact of deformable spheres)      <body>_sphere <body>_surface
 =========== ================================================ =======================
 
 A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
@@ -51,7 +53,7 @@ from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
 from meshes.fusiform import fusiform
 from meshes.geo import geo_parameters, read_geo
 from meshes.layered_arm import layered_arm
-from meshes.sphere import sphere
+from meshes.sphere import sphere, sphere_pair
 from meshes.trunk import trunk
 
 __all__ = [
@@ -71,6 +73,7 @@ __all__ = [
     "read_geo",
     "read_msh",
     "sphere",
+    "sphere_pair",
     "stacked_blocks",
     "trunk",
     "write_msh",
@@ -87,6 +90,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "arm_segment": arm_segment,
     "layered_arm": layered_arm,
     "stacked_blocks": stacked_blocks,
+    "sphere_pair": sphere_pair,
 }
 
 

@@ -59,6 +59,9 @@ def combine(bodies: Mapping[str, MeshData]) -> MeshData:
             facets.append(chosen + offset)
             facet_tags.append(np.full(len(chosen), new, dtype=np.int32))
         surface = _boundary_triangles(data.cells)
+        if f"{name}_surface" in boundaries:
+            raise ValueError(f"{name}: a boundary named 'surface' would clash with {name}_surface (the whole "
+                             "boundary): rename it")
         new = len(boundaries) + 1
         boundaries[f"{name}_surface"] = new
         facets.append(surface + offset)

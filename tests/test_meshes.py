@@ -112,7 +112,7 @@ def muscle() -> MeshData:
 
 def test_registry_names() -> None:
     assert set(GENERATORS) == {"arm_segment", "box", "cylinder", "cook", "fusiform", "layered_arm", "sphere",
-                               "stacked_blocks", "trunk"}
+                               "sphere_pair", "stacked_blocks", "trunk"}
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
@@ -217,6 +217,27 @@ def test_stacked_blocks_are_two_bodies() -> None:
     assert len(np.intersect1d(lower, upper)) == 0
     with pytest.raises(ParameterError, match="stacked_blocks: gap"):
         generate("stacked_blocks", gap=-0.1)
+
+
+def test_sphere_pair_touches_at_the_origin() -> None:
+    """Two ball octants (radii 1 and 2) touching at the origin, positively oriented, sharing no node; the
+    symmetry faces on x = 0 and y = 0, the equators at z = 1 and z = -2."""
+    mesh = generate("sphere_pair", radius=1.0, lower_radius=2.0, size=0.3, pole_size=0.05, pole_radius=0.1)
+    assert_valid(mesh)
+    assert set(mesh.region_names) == {"upper", "lower"}
+    for body in ("upper", "lower"):
+        assert np.allclose(face_points(mesh, f"{body}_xmin")[:, 0], 0.0, atol=1e-9)
+        assert np.allclose(face_points(mesh, f"{body}_ymin")[:, 1], 0.0, atol=1e-9)
+    assert np.allclose(face_points(mesh, "upper_zmax")[:, 2], 1.0, atol=1e-9)
+    assert np.allclose(face_points(mesh, "lower_zmin")[:, 2], -2.0, atol=1e-9)
+    upper, lower = face_points(mesh, "upper_sphere"), face_points(mesh, "lower_sphere")
+    assert np.allclose(np.linalg.norm(upper - [0.0, 0.0, 1.0], axis=1), 1.0, atol=1e-6)
+    assert np.allclose(np.linalg.norm(lower - [0.0, 0.0, -2.0], axis=1), 2.0, atol=1e-6)
+    assert upper[:, 2].min() == pytest.approx(0.0, abs=1e-12) and lower[:, 2].max() == pytest.approx(0.0, abs=1e-12)
+    assert mesh.volume() == pytest.approx(math.pi / 6 * (1.0 + 8.0), rel=0.02)
+    assert len(set(np.sign(signed_volumes(mesh.points, mesh.cells)))) == 1  # the turn keeps the orientation
+    cells = {b: np.unique(mesh.cells[mesh.cell_tags == mesh.region_names[b]]) for b in ("upper", "lower")}
+    assert len(np.intersect1d(cells["upper"], cells["lower"])) == 0
 
 
 # --- fusiform -----------------------------------------------------------------------------------
@@ -401,7 +422,8 @@ def test_generate_passes_parameters() -> None:
 @pytest.mark.parametrize(
     ("name", "params", "message"),
     [
-        ("blob", {}, "unknown mesh generator 'blob'; available: arm_segment, box, cook, cylinder, fusiform, layered_arm, sphere"),
+        ("blob", {}, "unknown mesh generator 'blob'; available: arm_segment, box, cook, cylinder, fusiform, "
+                       "layered_arm, sphere"),
         ("cylinder", {"radiu": 1.0}, "cylinder: unknown parameter 'radiu'"),
         ("cylinder", {"radius": -1.0}, "cylinder: radius must be > 0, got -1.0"),
         ("cylinder", {"size": 0}, "cylinder: size must be > 0, got 0.0"),

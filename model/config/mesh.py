@@ -19,7 +19,8 @@ _GMSH = (".msh", ".geo")
 #: benchmark's fixed 48 x 60 outline, whose thickness is in the same unit); a box's size: its three edge lengths
 GENERATOR_UNITS = {name: "m (length)" for name in (
     "length", "radius", "muscle_radius", "tendon_radius", "tendon_length", "spacing", "size", "thickness",
-    "belly_radius", "height", "base_radius", "top_radius", "bend", "pole_size", "pole_radius", "gap")}
+    "belly_radius", "height", "base_radius", "top_radius", "bend", "pole_size", "pole_radius", "gap", "lower_radius",
+    "lower_pole_size")}
 
 
 def _generator_schema(schema: dict[str, Any]) -> None:

@@ -335,15 +335,11 @@ class BodyContact:
         return (blocks * bs + local % bs).astype(PETSc.IntType)
 
     def add_jacobian(self, A: PETSc.Mat) -> None:
-        """A += C (coupling_matrix), new nonzeros allowed (the master-slave couplings move). Collective; A is
-        assembled again by the caller."""
+        """A += C (coupling_matrix; A assembled), new nonzeros allowed (the master-slave couplings move): MatAXPY
+        with a different nonzero pattern, which builds the union pattern at once (inserting C row by row into A
+        reallocated A at every new nonzero: 5 s of a 10k-dof Hertz run). Collective."""
         C = self.coupling_matrix()
-        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        start, end = C.getOwnershipRange()
-        for row in range(start, end):
-            cols, values = C.getRow(row)
-            if len(cols):
-                A.setValues(np.array([row], dtype=PETSc.IntType), cols, values, addv=PETSc.InsertMode.ADD_VALUES)
+        A.axpy(1.0, C, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         C.destroy()
 
     # --- the augmented Lagrangian (model.solvers.contact.UzawaSolver drives it) -----------------------------

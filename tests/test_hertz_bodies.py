@@ -1,0 +1,56 @@
+"""Hertz contact with both bodies deformable (issue 14): two elastic spheres (octants, E2 = 2 E1, non-matching
+meshes) pressed together by an approach d = 2e-3 R (contact radius a = (R d / 2)^(1/2) = 0.032 R), contact
+between the bodies with augmented-Lagrangian penalty (model.experiments.hertz; model.problem.body_contact).
+
+Against F = (4/3) E* (R/2)^(1/2) d^(3/2), 1/E* = (1 - nu^2)/E1 + (1 - nu^2)/E2, and a = (R d / 2)^(1/2): within
+5 % on the finest mesh (pole size 0.004, P1). The force error falls about like h (7.2, 4.8, 3.3 % for the pole
+sizes 0.008, 0.0057, 0.004 with the grading and far size scaled alike: -m slow), towards the finite spheres'
+stiffening (Richardson: < 1 %).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from model.experiments.hertz import hertz_force, hertz_spheres
+
+#: (pole size, growth, far size): the graded mesh refined as a whole by 2^(1/2) per level
+MESHES = ((0.008, 0.3, 0.25), (0.008 / 2**0.5, 0.3 / 2**0.5, 0.25 / 2**0.5), (0.004, 0.15, 0.125))
+D = 2.0e-3
+
+
+def test_hertz_force_formula() -> None:
+    """Two equal spheres of equal material: F = (4/3) E/(2 (1 - nu^2)) (R/2)^(1/2) d^(3/2); a rigid plane
+    (E2 -> inf, R2 -> inf) gives the sphere-on-plane (4/3) E/(1 - nu^2) R^(1/2) d^(3/2)."""
+    E, nu, R, d = 1.0e4, 0.3, 1.0, 1e-3
+    assert hertz_force(d, R, R, E, E, nu, nu) == pytest.approx(4 / 3 * E / (2 * (1 - nu**2)) * math.sqrt(R / 2)
+                                                               * d**1.5, rel=1e-14)
+    assert hertz_force(d, R, 1e30, E, 1e30, nu, nu) == pytest.approx(4 / 3 * E / (1 - nu**2) * d**1.5, rel=1e-12)
+
+
+def test_two_deformable_spheres_against_hertz() -> None:
+    """The finest test mesh, one load step: force within 5 % of Hertz, contact radius within one pole size,
+    penetration below the Uzawa tolerance (1e-6 of the bounding-box diagonal)."""
+    pole, growth, size = MESHES[-1]
+    result = hertz_spheres(pole, growth, size, approach=D, steps=1)
+    assert result.completed
+    (point,) = result.points
+    assert abs(point.error) < 0.05, point
+    assert point.error > 0.0  # P1 and the finite spheres are both stiffer than Hertz's half-spaces
+    assert abs(point.contact_radius - math.sqrt(0.5 * D)) <= pole, point
+    assert point.max_penetration <= 1e-6 * result.contact.size
+    assert point.uzawa_rounds <= 4, point
+
+
+@pytest.mark.slow
+def test_hertz_mesh_refinement_and_exponent() -> None:
+    """Three meshes: errors fall (about like h), the finest within 5 %; F ~ d^(3/2) between d/2 and d."""
+    errors = []
+    for pole, growth, size in MESHES:
+        result = hertz_spheres(pole, growth, size, approach=D, steps=2)
+        half, full = result.points
+        errors.append(full.error)
+        assert math.log(full.force / half.force) / math.log(2.0) == pytest.approx(1.5, abs=0.05)
+    assert errors[0] > errors[1] > errors[2] > 0.0 and errors[2] < 0.05, errors
