@@ -3,9 +3,9 @@ meshes) pressed together by an approach d = 2e-3 R (contact radius a = (R d / 2)
 between the bodies with augmented-Lagrangian penalty (model.experiments.hertz; model.problem.body_contact).
 
 Against F = (4/3) E* (R/2)^(1/2) d^(3/2), 1/E* = (1 - nu^2)/E1 + (1 - nu^2)/E2, and a = (R d / 2)^(1/2): within
-5 % on the finest mesh (pole size 0.004, P1). The force error falls about like h (7.2, 4.8, 3.3 % for the pole
-sizes 0.008, 0.0057, 0.004 with the grading and far size scaled alike: -m slow), towards the finite spheres'
-stiffening (Richardson: < 1 %).
+5 % on the finest mesh (pole size 0.004, P1). The force error falls with h (+7.15, +4.69, +3.25 % for the pole
+sizes 0.008, 0.0057, 0.004 with the grading and far size scaled alike: -m slow; observed order 1.5), towards the
+finite spheres' stiffening (Richardson: -0.2 to +1.2 %; docs/layers.md).
 """
 
 from __future__ import annotations
