@@ -36,7 +36,8 @@ def test_two_deformable_spheres_against_hertz() -> None:
     pole, growth, size = MESHES[-1]
     result = hertz_spheres(pole, growth, size, approach=D, steps=1)
     assert result.completed
-    (point,) = result.points
+    point = result.points[-1]  # one step (Debian 12); Debian 13's gmsh mesh takes a cut-back to two
+    assert point.approach == pytest.approx(D, rel=1e-12)
     assert abs(point.error) < 0.05, point
     assert point.error > 0.0  # P1 and the finite spheres are both stiffer than Hertz's half-spaces
     assert abs(point.contact_radius - math.sqrt(0.5 * D)) <= pole, point
