@@ -3,9 +3,9 @@ meshes) pressed together by an approach d = 2e-3 R (contact radius a = (R d / 2)
 between the bodies with augmented-Lagrangian penalty (model.experiments.hertz; model.problem.body_contact).
 
 Against F = (4/3) E* (R/2)^(1/2) d^(3/2), 1/E* = (1 - nu^2)/E1 + (1 - nu^2)/E2, and a = (R d / 2)^(1/2): within
-5 % on the finest mesh (pole size 0.004, P1). The force error falls about like h (7.2, 4.8, 3.3 % for the pole
-sizes 0.008, 0.0057, 0.004 with the grading and far size scaled alike: -m slow), towards the finite spheres'
-stiffening (Richardson: < 1 %).
+5 % on the finest mesh (pole size 0.004, P1). The force error falls with h (+7.15, +4.69, +3.25 % for the pole
+sizes 0.008, 0.0057, 0.004 with the grading and far size scaled alike: -m slow; observed order 1.5), towards the
+finite spheres' stiffening (Richardson: -0.2 to +1.2 %; docs/layers.md).
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ def test_two_deformable_spheres_against_hertz() -> None:
     pole, growth, size = MESHES[-1]
     result = hertz_spheres(pole, growth, size, approach=D, steps=1)
     assert result.completed
-    (point,) = result.points
+    point = result.points[-1]  # one step (Debian 12); Debian 13's gmsh mesh takes a cut-back to two
+    assert point.approach == pytest.approx(D, rel=1e-12)
     assert abs(point.error) < 0.05, point
     assert point.error > 0.0  # P1 and the finite spheres are both stiffer than Hertz's half-spaces
     assert abs(point.contact_radius - math.sqrt(0.5 * D)) <= pole, point

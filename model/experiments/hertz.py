@@ -36,7 +36,8 @@ from model.solvers.loadstepping import step_loads
 
 log = logging.getLogger(__name__)
 
-__all__ = ["HertzPoint", "HertzResult", "hertz_force", "hertz_spheres"]
+__all__ = ["HertzPoint", "HertzResult", "face_triangles", "hertz_force", "hertz_pressure", "hertz_spheres",
+           "pressure_profile"]
 
 
 def hertz_force(d: float, R1: float, R2: float, E1: float, E2: float, nu1: float, nu2: float) -> float:
@@ -44,6 +45,12 @@ def hertz_force(d: float, R1: float, R2: float, E1: float, E2: float, nu1: float
     radius = 1.0 / (1.0 / R1 + 1.0 / R2)
     modulus = 1.0 / ((1.0 - nu1**2) / E1 + (1.0 - nu2**2) / E2)
     return 4.0 / 3.0 * modulus * math.sqrt(radius) * d**1.5
+
+
+def hertz_pressure(r: np.ndarray, force: float, a: float) -> np.ndarray:
+    """Hertz's contact pressure p(r) = p0 (1 - r^2/a^2)^(1/2), p0 = 3 F / (2 pi a^2) (0 outside the contact)."""
+    p0 = 3.0 * force / (2.0 * math.pi * a**2)
+    return p0 * np.sqrt(np.clip(1.0 - (np.asarray(r) / a) ** 2, 0.0, None))
 
 
 @dataclass
@@ -122,3 +129,31 @@ def hertz_spheres(pole_size: float = 0.004, growth: float = 0.15, size: float = 
     solver.destroy()
     dofs = problem.space.dofmap.index_map.size_global * problem.space.dofmap.index_map_bs
     return HertzResult(points, problem, contact, dofs, completed, (radius, R2))
+
+
+def pressure_profile(contact: BodyContact) -> tuple[np.ndarray, np.ndarray]:
+    """(r, p) at every slave node, all ranks: the reference distance from the axis and the contact pressure
+    p = max(lambda - k g, 0) (per reference area)."""
+    r = np.linalg.norm(contact.reference[contact.slave_blocks][:, :2], axis=1)
+    lam = contact.multiplier.x.array[contact.slave_q]
+    p = np.maximum(lam - float(contact.k.value) * contact.nodal_gaps(), 0.0)
+    parts = contact.comm.allgather((r, p))
+    return np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts])
+
+
+def face_triangles(problem: ElasticityProblem, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The triangles of boundary ``name``: reference vertices (n, 3, 3) and their displacements (n, 3, 3), every
+    rank's (for pictures; P1)."""
+    from model import compat
+
+    msh, V = problem.domain.mesh, problem.space
+    geometry_to_dof = np.empty(len(msh.geometry.x), dtype=np.int64)
+    geometry_to_dof[compat.geometry_dofs(msh)[:, :4].ravel()] = compat.cell_dofs(V.dofmap)[:, :4].ravel()
+    fdim = msh.topology.dim - 1
+    facets = np.asarray(problem.domain.boundary_facets(name), dtype=np.int32)
+    facets = facets[facets < msh.topology.index_map(fdim).size_local]
+    nodes = np.asarray(compat.entity_geometry(msh, fdim, facets), dtype=np.int64).reshape(len(facets), -1)[:, :3] \
+        if len(facets) else np.empty((0, 3), dtype=np.int64)
+    u = problem.solution.x.array.reshape(-1, 3)[geometry_to_dof[nodes]]
+    parts = msh.comm.allgather((msh.geometry.x[nodes], u))
+    return np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts])

@@ -432,9 +432,12 @@ class NewtonSolver:
         fem_petsc.assemble_matrix(A, self.jacobian_form, bcs=self.problem.bcs)
         A.assemble()
         if self.problem.couplings:  # contact between bodies: the couplings through the closest points
+            nonzeros = A.getInfo()["nz_allocated"]
             for coupling in self.problem.couplings:
                 coupling.add_jacobian(A)
             A.assemble()
+            if A.getInfo()["nz_allocated"] != nonzeros:  # the pattern grew (MatAXPY replaced A's storage): factor
+                snes.getKSP().getPC().reset()  # anew (PETSc 3.22 reused the old symbolic factorisation: MUMPS error)
 
     def solve(self) -> SolveResult:
         """Newton from the current solution; the solution holds the last iterate afterwards."""
