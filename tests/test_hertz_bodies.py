@@ -31,13 +31,15 @@ def test_hertz_force_formula() -> None:
 
 
 def test_two_deformable_spheres_against_hertz() -> None:
-    """The finest test mesh, one load step: force within 5 % of Hertz, contact radius within one pole size,
-    penetration below the Uzawa tolerance (1e-6 of the bounding-box diagonal)."""
+    """The finest test mesh, two load steps (one step converges on Debian 12 in 17 Newton iterations, but Debian
+    13's mesh needs a cut-back after 30): force within 5 % of Hertz, F ~ d^(3/2), contact radius within one pole
+    size, penetration below the Uzawa tolerance (1e-6 of the bounding-box diagonal)."""
     pole, growth, size = MESHES[-1]
-    result = hertz_spheres(pole, growth, size, approach=D, steps=1)
+    result = hertz_spheres(pole, growth, size, approach=D, steps=2)
     assert result.completed
-    point = result.points[-1]  # one step (Debian 12); Debian 13's gmsh mesh takes a cut-back to two
+    half, point = result.points
     assert point.approach == pytest.approx(D, rel=1e-12)
+    assert math.log(point.force / half.force) / math.log(2.0) == pytest.approx(1.5, abs=0.05)
     assert abs(point.error) < 0.05, point
     assert point.error > 0.0  # P1 and the finite spheres are both stiffer than Hertz's half-spaces
     assert abs(point.contact_radius - math.sqrt(0.5 * D)) <= pole, point

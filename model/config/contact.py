@@ -101,8 +101,6 @@ class ContactSpec(Variant):
             return self
         if self.master == self.surface:
             fail(f"must differ from surface ({self.surface!r}): contact between two bodies' boundaries", "master")
-        if self.method != "penalty":
-            fail(f"contact between bodies (master) needs method = \"penalty\", not {self.method!r}", "method")
         if self.sliding and self.augmented:
             fail("not with sliding = true (the sliding springs hold both ways; Uzawa updates are for contact)",
                  "augmented")
@@ -128,8 +126,6 @@ class VIContact(ContactSpec):
 
     @model_validator(mode="after")
     def _axis_plane(self) -> VIContact:
-        if self.master is not None:
-            fail("contact between bodies (master) needs method = \"penalty\", not \"vi\"", "method")
         if self.obstacle is None:
             return self
         if not isinstance(self.obstacle, Plane):
