@@ -85,7 +85,8 @@ class MembraneProblem:
     """The membrane energy Pi(u) = int w(F) dA - p V(x) on ``domain`` (module docstring).
 
     Attributes: ``u`` (displacement), ``pressure`` (fem.Constant), ``energy`` (the UFL form Pi), ``residual``
-    (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0).
+    (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0), ``contacts`` (the contact
+    terms added to Pi, model.problem.membrane_contact).
     """
 
     def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
@@ -120,6 +121,12 @@ class MembraneProblem:
         self._volume = fem.form(self.volume_form)
         self._area = fem.form(fem.Constant(msh, PETSc.ScalarType(1.0)) * self.dA)
         self._stretch = fem.form(self.stretch_energy)
+        self.contacts: list = []  # model.problem.membrane_contact objects (add_energy registers their energies)
+
+    def add_energy(self, energy: ufl.Form) -> None:
+        """Pi <- Pi + energy (e.g. a contact penalty), and the residual again; before a solver is made."""
+        self.energy = self.energy + energy
+        self.residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
 
     def _sum(self, form: fem.Form) -> float:
         return float(self.domain.mesh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
