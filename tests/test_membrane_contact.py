@@ -8,7 +8,7 @@ from mpi4py import MPI
 
 from forms.membrane import MembraneNeoHookean, MembraneStVK
 from forms.obstacles import Capsule, Sphere
-from meshes.membrane import disc_surface, sphere_octant
+from meshes.membrane import disc_surface, enclosed_volume, extrude, smooth_rest_shape, sphere_octant, vertex_normals
 from model.domain.distribute import build_domain
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, radial_orientation
 from model.problem.membrane_contact import ObstacleContact, contact_fraction
@@ -113,3 +113,83 @@ def test_contact_input_errors():
         inflate_to_volume(problem, 1.0, 1e-3, contact_fraction=0.5)
     with pytest.raises(ValueError, match="k must be"):
         ObstacleContact(problem, Sphere((0.0, 0.0, 1.0), 0.2), k=-1.0)
+
+
+def test_extrusion_moves_the_free_vertices_by_the_offset_along_their_normals():
+    """Thesis ch. 3.3.3: every vertex but the attachment moved by the offset along its vertex normal."""
+    disc = disc_surface(1.0, 0.2)
+    rim = np.unique(disc.facets)
+    out = extrude(disc, 0.03, rim)
+    free = np.setdiff1d(np.arange(len(disc.points)), rim)
+    assert np.array_equal(out.points[rim], disc.points[rim])
+    assert np.allclose(out.points[free, 2], 0.03, atol=1e-15)  # the flat patch: straight up
+    assert np.array_equal(out.points[:, :2], disc.points[:, :2])
+    octant = sphere_octant(1.0, 0.2)
+    edge = np.unique(octant.facets)
+    out = extrude(octant, 0.05, edge)
+    free = np.setdiff1d(np.arange(len(octant.points)), edge)
+    step = out.points[free] - octant.points[free]
+    assert np.allclose(np.linalg.norm(step, axis=1), 0.05, rtol=1e-12)
+    assert np.allclose(np.cross(step, vertex_normals(octant.points, octant.cells)[free]), 0.0, atol=1e-15)
+    assert np.allclose(np.linalg.norm(out.points[free], axis=1), 1.05, atol=2e-3)  # ~radial on the sphere
+    with pytest.raises(ValueError, match="offset"):
+        extrude(disc, -0.1, rim)
+
+
+def test_smoothing_keeps_the_border_and_stops_at_the_volume():
+    """Alternated Laplacian smoothing and tangential relaxation of a rough dome: the rim does not move, the
+    volume decreases at every iteration and stops at the first one <= the estimate, the roughness drops."""
+    disc = disc_surface(1.0, 0.1)
+    rim = np.unique(disc.facets)
+    x = disc.points.copy()
+    r2 = x[:, 0] ** 2 + x[:, 1] ** 2
+    x[:, 2] = (1 - r2) * (0.5 + 0.05 * np.sin(9 * x[:, 0]) * np.cos(7 * x[:, 1]))
+    V0 = enclosed_volume(x, disc.cells)
+    shape = smooth_rest_shape(x, disc.cells, rim, 0.7 * V0)
+    assert np.array_equal(shape.points[rim], x[rim])
+    assert np.all(np.diff(shape.volumes) < 0) and shape.volumes[0] == pytest.approx(V0)
+    assert shape.volumes[-1] <= 0.7 * V0 < shape.volumes[-2]
+    assert shape.volumes[-1] == pytest.approx(enclosed_volume(shape.points, disc.cells), rel=1e-14)
+    free = np.setdiff1d(np.arange(len(x)), rim)
+
+    def roughness(p):
+        return np.linalg.norm((smoothing_laplacian(p, disc.cells) - p)[free][:, 2])
+
+    assert roughness(shape.points) < 0.5 * roughness(x)
+    with pytest.raises(ValueError, match="volume"):
+        smooth_rest_shape(x, disc.cells, rim, 2 * V0)
+
+
+def smoothing_laplacian(points, cells):
+    """The mean of each node's edge neighbours (the umbrella operator's c_i)."""
+    from meshes.membrane import _neighbour_means
+
+    return _neighbour_means(points, cells)
+
+
+def test_two_phase_inflation_against_a_bone():
+    """The thesis' workflow: extrusion inflated to the first volume, rest shape smoothed to the estimate, then
+    inflated against a capsule bone until 5 % of the area touches (before the target volume); closed and
+    tetrahedralised (volume = the membrane's), fibres."""
+    import ufl
+    from dolfinx import fem
+
+    from model.experiments.membrane import inflate_extruded_patch
+
+    bone = Capsule((-2.0, 0.0, 0.75), (2.0, 0.0, 0.75), 0.3)
+    result = inflate_extruded_patch(NEO, offset=0.03, first_volume=0.8, rest_volume=0.4, target_volume=2.0,
+                                    obstacles=[(bone, 10.0, False)], contact_fraction=0.05)
+    assert result.first_steps[-1].volume == pytest.approx(0.8, rel=1e-6)
+    assert all(s.contact_fraction == 0.0 for s in result.first_steps)
+    if COMM.rank == 0:
+        assert result.smoothing.volumes[-1] <= 0.4 < result.smoothing.volumes[-2]
+        assert np.allclose(result.extruded[:, 2][np.abs(result.extruded[:, 2]) > 0], 0.03)
+    assert result.initial_energy > 0.0  # the extruded positions on the smoothed rest shape: compressed
+    last = result.steps[-1]
+    assert last.contact_fraction >= 0.05 and last.volume < 2.0
+    report = result.contacts[0].report()
+    assert report["contact_fraction"] == last.contact_fraction and report["force"][2] < 0.0
+    assert 0.0 < report["max_penetration"] < 0.02
+    msh = result.domain.mesh
+    volume = COMM.allreduce(fem.assemble_scalar(fem.form(1.0 * ufl.dx(domain=msh))), op=MPI.SUM)
+    assert volume == pytest.approx(result.problem.volume(), rel=1e-10)

@@ -46,7 +46,8 @@ from model.domain.distribute import Domain
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Hencky", "MembraneProblem", "axis_orientation", "balloon_pressure", "hencky", "radial_orientation"]
+__all__ = ["Hencky", "MembraneProblem", "axis_orientation", "balloon_pressure", "hencky", "radial_orientation",
+           "triangle_orientation"]
 
 Orientation = Callable[[np.ndarray], np.ndarray]
 
@@ -61,6 +62,17 @@ def axis_orientation(axis: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> Orie
     """Normals along ``axis`` (a surface that is a graph over the plane normal to it, e.g. a disc: +z)."""
     a = np.asarray(axis, dtype=np.float64)
     return lambda centroids: np.broadcast_to(a, centroids.shape)
+
+
+def triangle_orientation(points: np.ndarray, cells: np.ndarray) -> Orientation:
+    """Normals of the given triangles' right-handed vertex order ((x1 - x0) x (x2 - x0)), looked up by centroid:
+    for a surface mesh whose input triangles are oriented (e.g. an inflated patch, whatever its shape)."""
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, dtype=np.float64)[np.asarray(cells, dtype=np.int64)]
+    normals = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    tree = cKDTree(p.mean(axis=1))
+    return lambda centroids: normals[tree.query(centroids)[1]]
 
 
 def _normal_field(domain: Domain, orientation: Orientation) -> fem.Function:
