@@ -43,9 +43,9 @@ from meshes._validate import positive_float
 from meshes.data import MeshData
 from meshes.gingerbread import PlanarMeshData
 
-__all__ = ["SmoothedShape", "SurfaceMeshData", "close_with_base", "disc_surface", "enclosed_volume", "extrude",
-           "orient_triangles", "smooth_rest_shape", "sphere_octant", "sphere_surface", "surface_areas",
-           "tetrahedralise", "vertex_normals"]
+__all__ = ["SmoothedShape", "SurfaceMeshData", "close_with_base", "combine_surfaces", "disc_surface",
+           "enclosed_volume", "extrude", "orient_triangles", "smooth_rest_shape", "sphere_octant", "sphere_surface",
+           "surface_areas", "tetrahedralise", "vertex_normals"]
 
 logger = logging.getLogger(__name__)
 
@@ -320,3 +320,27 @@ def smooth_rest_shape(points: np.ndarray, cells: np.ndarray, fixed: np.ndarray, 
         iterations += 1
     logger.info("smooth_rest_shape: volume %.6g -> %.6g in %d iterations", volumes[0], volumes[-1], iterations)
     return SmoothedShape(x, iterations, np.asarray(volumes))
+
+
+def combine_surfaces(bodies: dict[str, SurfaceMeshData]) -> SurfaceMeshData:
+    """Several surface meshes as one (no shared node): each body's triangles form a region named after it, each
+    boundary becomes "<body>_<boundary>" (membrane-membrane contact pairs two regions of one mesh)."""
+    points, cells, cell_tags, facets, facet_tags = [], [], [], [], []
+    regions: dict[str, int] = {}
+    boundaries: dict[str, int] = {}
+    offset = 0
+    for name, data in bodies.items():
+        regions[name] = len(regions) + 1
+        points.append(data.points)
+        cells.append(data.cells + offset)
+        cell_tags.append(np.full(len(data.cells), regions[name], dtype=np.int32))
+        for boundary, tag in data.boundary_names.items():
+            boundaries[f"{name}_{boundary}"] = len(boundaries) + 1
+            mask = data.facet_tags == tag
+            facets.append(data.facets[mask] + offset)
+            facet_tags.append(np.full(int(mask.sum()), boundaries[f"{name}_{boundary}"], dtype=np.int32))
+        offset += len(data.points)
+    empty = np.empty((0, 2), dtype=np.int64)
+    return SurfaceMeshData(np.vstack(points), np.vstack(cells), np.concatenate(cell_tags),
+                           np.vstack(facets) if facets else empty,
+                           np.concatenate(facet_tags) if facet_tags else np.empty(0, np.int32), regions, boundaries)

@@ -7,11 +7,20 @@ import pytest
 from mpi4py import MPI
 
 from forms.membrane import MembraneNeoHookean, MembraneStVK
-from forms.obstacles import Capsule, Sphere
-from meshes.membrane import disc_surface, enclosed_volume, extrude, smooth_rest_shape, sphere_octant, vertex_normals
+from forms.obstacles import Capsule, Plane, Sphere
+from meshes.membrane import (
+    SurfaceMeshData,
+    combine_surfaces,
+    disc_surface,
+    enclosed_volume,
+    extrude,
+    smooth_rest_shape,
+    sphere_octant,
+    vertex_normals,
+)
 from model.domain.distribute import build_domain
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, radial_orientation
-from model.problem.membrane_contact import ObstacleContact, contact_fraction
+from model.problem.membrane_contact import MembranePairContact, ObstacleContact, contact_fraction
 from model.solvers.membrane import inflate, inflate_to_volume
 
 COMM = MPI.COMM_WORLD
@@ -193,3 +202,86 @@ def test_two_phase_inflation_against_a_bone():
     msh = result.domain.mesh
     volume = COMM.allreduce(fem.assemble_scalar(fem.form(1.0 * ufl.dx(domain=msh))), op=MPI.SUM)
     assert volume == pytest.approx(result.problem.volume(), rel=1e-10)
+
+
+def _facing_discs(H: float) -> SurfaceMeshData:
+    """Two clamped unit discs: ``lower`` on z = 0 (normal +z) and ``upper``, its mirror image on z = H (normal
+    -z, the triangles reversed), one mesh of two regions."""
+    lower = disc_surface(1.0, 0.2)
+    points = lower.points.copy()
+    points[:, 2] = H - points[:, 2]
+    upper = SurfaceMeshData(points, lower.cells[:, [0, 2, 1]], lower.cell_tags, lower.facets, lower.facet_tags,
+                            lower.region_names, lower.boundary_names)
+    return combine_surfaces({"lower": lower, "upper": upper})
+
+
+def test_two_membranes_pressed_together():
+    """Two mirror-image clamped discs (H = 0.8 apart) inflated towards each other under the same pressure: by
+    symmetry each is the disc against a rigid plane at z = H/2 whose penalty is 2k (the gap g = n . (x_s - x*)
+    counts both penetrations); the slave's and master's contact forces balance, the penetration (sum of both)
+    is twice the rigid one and stays below 2 p / k (the contact pressure k g balances p lambda^2 < 2 p)."""
+    H, k = 0.8, 10.0
+    pressures, options = [2e-3, 4e-3, 6e-3], {"snes_max_it": 150}
+    bump = 0.3
+    data = _facing_discs(H) if COMM.rank == 0 else None
+    problem = MembraneProblem(build_domain(COMM, data), STVK,
+                              lambda c: np.where(c[:, 2:3] < H / 2, 1.0, -1.0) * np.array([0.0, 0.0, 1.0]),
+                              {"lower_rim": (0, 1, 2), "upper_rim": (0, 1, 2)})
+    problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0],
+                                               np.where(x[2] < H / 2, 1, -1) * bump * (1 - x[0] ** 2 - x[1] ** 2)]))
+    pair = MembranePairContact(problem, "lower", "upper", k)
+    steps = inflate(problem, pressures, options=options)
+    both = pair.report()
+    rigid = MembraneProblem(_domain(disc_surface, 1.0, 0.2), STVK, axis_orientation(), {"rim": (0, 1, 2)})
+    rigid.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0], bump * (1 - x[0] ** 2 - x[1] ** 2)]))
+    plane = ObstacleContact(rigid, Plane((0.0, 0.0, H / 2), (0.0, 0.0, -1.0)), 2 * k)
+    reference = inflate(rigid, pressures, options=options)
+    one = plane.report()
+    assert steps[-1].pressure == reference[-1].pressure
+    assert both["force"][2] == pytest.approx(one["force"][2], rel=2e-3) and one["force"][2] < 0
+    assert np.allclose(both["master_force"], -np.asarray(both["force"]), atol=1e-12)
+    assert both["contact_fraction"] == one["contact_fraction"] > 0.1
+    assert both["max_penetration"] == pytest.approx(2 * one["max_penetration"], rel=5e-3)
+    assert both["max_penetration"] < 2 * pressures[-1] / k
+    assert steps[-1].contact_fraction == pytest.approx(0.5 * both["contact_fraction"])  # of both discs' area
+
+
+def test_pair_contact_jacobian_with_the_pairing_held():
+    """The coupled Newton matrix (K + K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi) is the derivative of the coupled
+    residual when the pairing (triangle, barycentric coordinates, normal) is held: finite differences O(eps)."""
+    from model.solvers.membrane import membrane_newton
+
+    H = 0.4
+    problem = MembraneProblem(build_domain(COMM, _facing_discs(H) if COMM.rank == 0 else None), STVK,
+                              lambda c: np.where(c[:, 2:3] < H / 2, 1.0, -1.0) * np.array([0.0, 0.0, 1.0]),
+                              {"lower_rim": (0, 1, 2), "upper_rim": (0, 1, 2)})
+    problem.u.interpolate(lambda x: np.vstack([0.02 * x[1] * (1 - x[0] ** 2 - x[1] ** 2), 0 * x[0],
+                                               np.where(x[2] < H / 2, 1, -1) * 0.25 * (1 - x[0] ** 2 - x[1] ** 2)]))
+    pair = MembranePairContact(problem, "lower", "upper", 10.0)
+    problem.pressure.value = 1e-3
+    newton = membrane_newton(problem)
+    x = newton.x
+    x.array[:] = problem.u.x.array[: len(x.array)]
+    b0 = newton.b.duplicate()
+    newton._residual(None, x, b0)
+    assert pair.report()["active_points"] > 10  # interpenetrating: the contact terms are on
+    newton._jacobian(None, x, newton.A, newton.A)
+    pair.frozen = pair.pairing
+    du = x.duplicate()
+    du.array[:] = np.random.default_rng(COMM.rank).standard_normal(len(du.array))
+    for bc in problem.bcs:
+        du.array[bc.dof_indices()[0][bc.dof_indices()[0] < len(du.array)]] = 0.0
+    Jdu = x.duplicate()
+    newton.A.mult(du, Jdu)
+    errors = []
+    for eps in (1e-4, 1e-5):
+        x1 = x.copy()
+        x1.axpy(eps, du)
+        b1 = newton.b.duplicate()
+        newton._residual(None, x1, b1)
+        b1.axpy(-1.0, b0)
+        b1.scale(1.0 / eps)
+        b1.axpy(-1.0, Jdu)
+        errors.append(b1.norm() / Jdu.norm())
+    newton.destroy()
+    assert errors[1] < 1e-3 and errors[1] < 0.2 * errors[0]

@@ -41,11 +41,12 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from forms.obstacles import Obstacle, penalty_energy
+from model import compat
 from model.problem.membrane import MembraneProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure"]
+__all__ = ["MembranePairContact", "ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure"]
 
 #: the nodal quadrature on a triangle: (A/3) at each vertex (reference triangle of area 1/2)
 VERTEX_RULE = {"quadrature_rule": "custom", "quadrature_degree": 1,
@@ -78,14 +79,20 @@ class _NodalContact:
         self.n_owned = V.dofmap.index_map.size_local
         self.reference = V.tabulate_dof_coordinates()[:, :3]
         v = ufl.TestFunction(V)
-        lumped = fem_petsc.assemble_vector(fem.form(v[0] * dA))
-        lumped.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.lumped_area = lumped.array_r.reshape(-1, 3)[: self.n_owned, 0].copy()
-        lumped.destroy()
+        #: the reference area lumped to the owned nodes, over the contact's surface and over the whole membrane
+        self.lumped_area, self.membrane_lumped = (self._lumped(v[0] * measure)
+                                                  for measure in (dA, nodal_measure(problem)))
         self.energy = energy
         self._force = fem.form(ufl.derivative(energy, problem.u, v))
         problem.add_energy(energy)
         problem.contacts.append(self)
+
+    def _lumped(self, form: ufl.Form) -> np.ndarray:
+        vector = fem_petsc.assemble_vector(fem.form(form))
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        values = vector.array_r.reshape(-1, 3)[: self.n_owned, 0].copy()
+        vector.destroy()
+        return values
 
     def positions(self) -> np.ndarray:
         """x = X + u at the owned nodes (n, 3)."""
@@ -122,7 +129,7 @@ def contact_fraction(problem: MembraneProblem) -> float:
     mask = np.zeros(problem.contacts[0].n_owned, dtype=bool)
     for contact in problem.contacts:
         mask |= contact.touching()
-    return _area_fraction(problem.domain.mesh.comm, problem.contacts[0].lumped_area, mask)
+    return _area_fraction(problem.domain.mesh.comm, problem.contacts[0].membrane_lumped, mask)
 
 
 class ObstacleContact(_NodalContact):
@@ -155,4 +162,224 @@ class ObstacleContact(_NodalContact):
         low = self.comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
         return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
                 "contact_fraction": self.contact_fraction(),
+                "active_points": self.comm.allreduce(int(np.sum(g < 0.0)), op=MPI.SUM)}
+
+
+class MembranePairContact(_NodalContact):
+    """Penalty contact of the ``slave`` region of the membrane mesh against its ``master`` region (two membranes
+    of one surface mesh, meshes.membrane.combine_surfaces), after model.problem.body_contact.BodyContact:
+
+        g = n . (x_s - x*),   x* = sum_j b_j x_j the closest point of the deformed master surface to the slave
+        node x_s (a triangle T, barycentric b_j, model.problem.body_contact.closest_points_on_triangles), n T's
+        current unit normal, oriented as the master's rest normal (problem.normal): the slave stays on the side
+        the master's normal points to;
+        Pi_c = int_slave (k/2) min(g, 0)^2 dA (nodal rule),
+
+    with z = Pi u (the master displacement at x*, Pi the barycentric interpolation) a Function of its own, so UFL
+    derives every term and the Newton solver (model.solvers.membrane) adds R += Pi^T dPi_c/dz and
+    K += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi. The pairing (T, b) and n are found again before every residual and
+    Jacobian (``update``) and held fixed in the derivatives (what is lagged: the normal's rotation and the slip
+    of x*). The master triangles are gathered on every rank (each rank pairs its own slave nodes)."""
+
+    def __init__(self, problem: MembraneProblem, slave: str, master: str, k: float, neighbours: int = 8,
+                 name: str | None = None) -> None:
+        if not (isinstance(k, (int, float)) and np.isfinite(k) and k > 0):
+            raise ValueError(f"membrane contact: k must be a finite number > 0, got {k!r}")
+        domain = problem.domain
+        for region in (slave, master):
+            error = domain.region_error(region)
+            if error is not None or region == "all":
+                raise ValueError(f"membrane contact: region: {error or 'a named membrane region, not all'}")
+        if slave == master:
+            raise ValueError("membrane contact: slave and master must be two regions")
+        self.slave, self.master, self.neighbours = slave, master, int(neighbours)
+        self.name = name or f"{slave}-{master}"
+        msh, V = domain.mesh, problem.V
+        self.V, self.comm = V, msh.comm
+        owned = V.dofmap.index_map.size_local
+        blocks = np.asarray(fem.locate_dofs_topological(V, 2, domain.region_cells(slave)), dtype=np.int32)
+        self.slave_blocks = blocks[blocks < owned]
+        self.reference = V.tabulate_dof_coordinates()[:, :3]
+        self._master_setup(problem)
+        self.X_star, self.contact_normal, self.z = (fem.Function(V, name=n) for n in ("X_star", "normal", "z"))
+        self.k = fem.Constant(msh, PETSc.ScalarType(k))
+        X = ufl.SpatialCoordinate(msh)
+        self.gap = ufl.dot(self.contact_normal, X + problem.u - self.X_star - self.z)
+        dA = nodal_measure(problem, slave)
+        energy = penalty_energy(self.gap, self.k) * dA
+        v, w = ufl.TestFunction(V), ufl.TrialFunction(V)
+        dz = ufl.derivative(energy, self.z, v)
+        self._ufl = {"Rz": dz, "Kuz": ufl.derivative(ufl.derivative(energy, problem.u, v), self.z, w),
+                     "Kzz": ufl.derivative(dz, self.z, w)}
+        self._compiled: dict[str, Any] = {}
+        self._stamp: np.ndarray | None = None
+        self.Pi: PETSc.Mat | None = None
+        #: (triangle, barycentric, normal) per slave node of the last pairing; ``frozen``: reuse one
+        self.pairing: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.frozen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._setup(problem, energy, dA)
+        self.slave_mask = np.zeros(self.n_owned, dtype=bool)
+        self.slave_mask[self.slave_blocks] = True
+
+    def _master_setup(self, problem: MembraneProblem) -> None:
+        """Owned master cells: their three block dofs, ordered so that (x1 - x0) x (x2 - x0) . N > 0 (N the rest
+        normal), and their global block indices."""
+        msh, V = problem.domain.mesh, self.V
+        cells = problem.domain.region_cells(self.master)
+        cells = cells[cells < msh.topology.index_map(2).size_local]
+        tri = compat.cell_dofs(V.dofmap)[cells, :3].astype(np.int64)
+        W = problem.normal.function_space
+        N = problem.normal.x.array.reshape(-1, 3)[compat.cell_dofs(W.dofmap)[cells, 0]]
+        x = self.reference
+        normal = np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
+        flip = np.einsum("ij,ij->i", normal, N) < 0
+        tri[flip] = tri[flip][:, [0, 2, 1]]
+        self.master_local = tri
+        self.master_global = np.asarray(V.dofmap.index_map.local_to_global(tri.ravel().astype(np.int32)),
+                                        dtype=np.int64).reshape(-1, 3)
+        if self.comm.allreduce(len(cells), op=MPI.SUM) == 0:
+            raise ValueError(f"membrane contact: region {self.master!r} has no cell")
+
+    def update(self) -> None:
+        """Pair every owned slave node with its closest master point at the current u; set X*, n, z and Pi.
+        Collective."""
+        from scipy.spatial import cKDTree
+
+        from model.problem.body_contact import closest_points_on_triangles
+
+        current = self.problem.u.x.array
+        changed = self._stamp is None or not np.array_equal(self._stamp, current)
+        if not self.comm.allreduce(changed, op=MPI.LOR):
+            return
+        u = current.reshape(-1, 3)
+        X_loc = self.reference[self.master_local]
+        parts = self.comm.allgather((X_loc, X_loc + u[self.master_local], self.master_global))
+        X_tri, x_tri, g_tri = (np.concatenate([p[i] for p in parts]) for i in range(3))
+        slave = self.slave_blocks
+        xs = self.reference[slave] + u[slave]
+        n, k = len(slave), min(self.neighbours, len(x_tri))
+        best_d, best_t, best_b = np.full(n, np.inf), np.zeros(n, dtype=np.int64), np.zeros((n, 3))
+        if n:
+            near = np.asarray(cKDTree(x_tri.mean(axis=1)).query(xs, k=k)[1]).reshape(n, k)
+            for j in range(k):
+                closest, bary = closest_points_on_triangles(xs, x_tri[near[:, j]])
+                d = np.linalg.norm(xs - closest, axis=1)
+                better = d < best_d - 1e-14 * np.maximum(d, 1.0)
+                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
+        # the master's vertex normals (area-weighted mean of its triangles' normals), interpolated at x*: a
+        # normal continuous across the master's edges, so the gap does not jump when x* changes triangle
+        face = np.cross(x_tri[:, 1] - x_tri[:, 0], x_tri[:, 2] - x_tri[:, 0])
+        nodes, index = np.unique(g_tri.ravel(), return_inverse=True)
+        vertex = np.zeros((len(nodes), 3))
+        for j in range(3):
+            np.add.at(vertex, index.reshape(-1, 3)[:, j], face)
+        vertex /= np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-300)
+        normal = np.einsum("ij,ijk->ik", best_b, vertex[index.reshape(-1, 3)[best_t]])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        if self.frozen is not None:  # the pairing of the last update, z from the current u (derivative checks)
+            best_t, best_b, normal = self.frozen
+        self.pairing = (best_t, best_b, normal)
+        values = (np.einsum("ij,ijk->ik", best_b, X_tri[best_t]), normal,
+                  np.einsum("ij,ijk->ik", best_b, x_tri[best_t] - X_tri[best_t]))
+        for function, value in zip((self.X_star, self.contact_normal, self.z), values, strict=True):
+            array = function.x.array.reshape(-1, 3)
+            array[:] = 0.0
+            array[slave] = value
+            function.x.scatter_forward()
+        self._build_interpolation(best_b, g_tri[best_t])
+        self._stamp = current.copy()
+
+    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
+        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices."""
+        imap = self.V.dofmap.index_map
+        n_local, n_global = imap.size_local * 3, imap.size_global * 3
+        if self.Pi is not None:
+            self.Pi.destroy()
+        Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)), nnz=(3, 3), comm=self.comm)
+        Pi.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        rows = np.asarray(imap.local_to_global(self.slave_blocks.astype(np.int32)), dtype=np.int64)
+        index = PETSc.IntType
+        for c in range(3):
+            for r, cols, w in zip(rows, columns, bary, strict=True):
+                Pi.setValues(np.array([r * 3 + c], dtype=index), (cols * 3 + c).astype(index), w,
+                             addv=PETSc.InsertMode.INSERT)
+        Pi.assemble()
+        self.Pi = Pi
+
+    def _form(self, key: str) -> Any:
+        if key not in self._compiled:
+            self._compiled[key] = fem.form(self._ufl[key])
+        return self._compiled[key]
+
+    def _master_force(self) -> PETSc.Vec:
+        """Pi^T dPi_c/dz (owned entries of a new vector). Collective."""
+        self.update()
+        Rz = fem_petsc.assemble_vector(self._form("Rz"))
+        Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = self.Pi.createVecRight()
+        self.Pi.multTranspose(Rz, out)
+        Rz.destroy()
+        return out
+
+    def add_residual(self, b: PETSc.Vec) -> None:
+        """b += Pi^T dPi_c/dz (b assembled and reverse-scattered). Collective."""
+        out = self._master_force()
+        with b.localForm() as local:
+            local.array[: len(out.array_r)] += out.array_r
+        out.destroy()
+
+    def add_jacobian(self, A: PETSc.Mat, bcs: list) -> None:
+        """A += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi, the rows and columns of the Dirichlet dofs zeroed. Collective;
+        A is assembled again by the caller."""
+        self.update()
+        Kuz = fem_petsc.assemble_matrix(self._form("Kuz"))
+        Kuz.assemble()
+        Kzz = fem_petsc.assemble_matrix(self._form("Kzz"))
+        Kzz.assemble()
+        C1 = Kuz.matMult(self.Pi)
+        C = C1.copy()
+        C.axpy(1.0, C1.transpose(), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        C.axpy(1.0, Kzz.PtAP(self.Pi), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        imap = self.V.dofmap.index_map
+        owned = imap.size_local * 3
+        dofs = [np.asarray(bc.dof_indices()[0], dtype=np.int64) for bc in bcs]
+        local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
+        local = local[local < owned]
+        glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
+        C.zeroRowsColumns(glob.astype(PETSc.IntType), diag=0.0)
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        start, end = C.getOwnershipRange()
+        for row in range(start, end):
+            cols, values = C.getRow(row)
+            if len(cols):
+                A.setValues(np.array([row], dtype=PETSc.IntType), cols, values, addv=PETSc.InsertMode.ADD_VALUES)
+        for m in (Kuz, Kzz, C1, C):
+            m.destroy()
+
+    def nodal_gaps(self) -> np.ndarray:
+        """g at the owned slave nodes (paired again if u changed). Collective."""
+        self.update()
+        u = self.problem.u.x.array.reshape(-1, 3)
+        s = self.slave_blocks
+        return np.einsum("ij,ij->i", self.contact_normal.x.array.reshape(-1, 3)[s],
+                         self.reference[s] + u[s] - self.X_star.x.array.reshape(-1, 3)[s]
+                         - self.z.x.array.reshape(-1, 3)[s])
+
+    def touching(self) -> np.ndarray:
+        mask = np.zeros(self.n_owned, dtype=bool)
+        mask[self.slave_blocks] = self.nodal_gaps() < 0.0
+        return mask
+
+    def report(self) -> dict[str, Any]:
+        """max_penetration (max(0, -min g)), force on the slave (-dPi_c/du at fixed z, summed), force on the
+        master (-Pi^T dPi_c/dz, summed), contact_fraction (of the slave region's area), active_points."""
+        g = self.nodal_gaps()
+        low = self.comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
+        out = self._master_force()
+        master = -np.asarray(self.comm.allreduce(out.array_r.reshape(-1, 3).sum(axis=0), op=MPI.SUM))
+        out.destroy()
+        lumped = self.lumped_area[self.slave_blocks]
+        return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
+                "master_force": [float(f) for f in master],
+                "contact_fraction": _area_fraction(self.comm, lumped, g < 0.0),
                 "active_points": self.comm.allreduce(int(np.sum(g < 0.0)), op=MPI.SUM)}

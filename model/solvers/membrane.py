@@ -21,14 +21,17 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from dolfinx.fem import petsc as fem_petsc
+from petsc4py import PETSc
 
+from model import compat
 from model.problem.membrane import MembraneProblem
 from model.problem.membrane_contact import contact_fraction as fraction_in_contact
 from model.solvers.form_newton import FormNewton
 
 log = logging.getLogger(__name__)
 
-__all__ = ["InflationStep", "inflate", "inflate_to_volume", "membrane_newton"]
+__all__ = ["CoupledNewton", "InflationStep", "inflate", "inflate_to_volume", "membrane_newton"]
 
 
 @dataclass(frozen=True)
@@ -48,10 +51,47 @@ def _step(problem: MembraneProblem, pressure: float, iterations: int) -> Inflati
                          fraction_in_contact(problem))
 
 
+class CoupledNewton(FormNewton):
+    """FormNewton plus the membrane-membrane contacts' couplings (model.problem.membrane_contact
+    .MembranePairContact): their pairing is updated before every assembly, the residual gets Pi^T dPi_c/dz and
+    the Jacobian the coupling matrices (Dirichlet rows and columns left to the identity rows)."""
+
+    def __init__(self, problem: MembraneProblem, couplings: list, options: dict) -> None:
+        self.couplings = couplings
+
+        def refresh() -> None:
+            for c in couplings:
+                c.update()
+
+        super().__init__(problem.residual, problem.u, problem.bcs, options=options, before_assembly=refresh)
+
+    def _residual(self, snes: PETSc.SNES, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        self._copy_in(x)
+        with b.localForm() as local:
+            local.set(0.0)
+        fem_petsc.assemble_vector(b, self.residual)
+        compat.apply_lifting(b, [self.jacobian], bcs=[self.bcs], x0=[x], alpha=-1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        for c in self.couplings:
+            c.add_residual(b)
+        compat.set_bc(b, self.bcs, x, -1.0)
+
+    def _jacobian(self, snes: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
+        super()._jacobian(snes, x, A, P)
+        for c in self.couplings:
+            c.add_jacobian(A, self.bcs)
+        A.assemble()
+
+
 def membrane_newton(problem: MembraneProblem, options: dict | None = None) -> FormNewton:
-    """A FormNewton on the problem's residual (Newton with a backtracking line search by default)."""
-    opts = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_atol": 1e-11, "snes_max_it": 40}
-    return FormNewton(problem.residual, problem.u, problem.bcs, options={**opts, **(options or {})})
+    """A FormNewton on the problem's residual (Newton with a backtracking line search by default); a
+    CoupledNewton when the membrane has membrane-membrane contacts."""
+    opts = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_atol": 1e-11, "snes_max_it": 40,
+            **(options or {})}
+    couplings = [c for c in problem.contacts if hasattr(c, "add_jacobian")]
+    if couplings:
+        return CoupledNewton(problem, couplings, opts)
+    return FormNewton(problem.residual, problem.u, problem.bcs, options=opts)
 
 
 def _solve_at(problem: MembraneProblem, newton: FormNewton, p_from: float, p_to: float, cutbacks: int) -> int:
