@@ -89,12 +89,12 @@ def test_balloon_in_a_rigid_cavity():
 
 def test_inflation_stops_at_the_contact_fraction_of_the_cavity():
     """The balloon touches the cavity everywhere at once, at p_m(R_c/R): the contact-fraction stop (0.5)
-    finds that pressure (to the balloon's 0.4 % discretisation error) long before the target volume."""
+    finds that pressure (to 1.5 %: the faceted balloon, size 0.2) long before the target volume."""
     problem, _ = _balloon_in_cavity(1.0)
     p_touch = float(balloon_pressure(STVK, 1.0, R_CAVITY))
     steps = inflate_to_volume(problem, target_volume=10.0, dp=0.3 * p_touch, contact_fraction=0.5)
     assert steps[-1].contact_fraction >= 0.5
-    assert steps[-1].pressure == pytest.approx(p_touch, rel=0.01)
+    assert steps[-1].pressure == pytest.approx(p_touch, rel=0.015)  # measured +0.84 %
     assert all(s.contact_fraction < 0.5 for s in steps if s.pressure < steps[-1].pressure)
 
 
