@@ -113,7 +113,10 @@ class MembraneProblem:
         self.pressure = fem.Constant(msh, PETSc.ScalarType(0.0))
         self.normal = _normal_field(domain, orientation)
         self.frame = tangent_frame(msh, self.normal)
-        self.dA = ufl.dx(domain=msh, metadata={"quadrature_degree": quadrature_degree})
+        # the cell tags as subdomain data: dolfinx 0.9 needs the same for every cell integral of a form, and the
+        # contact terms (model.problem.membrane_contact) integrate over tagged cells
+        self.dA = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags,
+                              metadata={"quadrature_degree": quadrature_degree})
         X = ufl.SpatialCoordinate(msh)
         self.F = membrane_deformation_gradient(self.u, self.frame)
         self.stretch_energy = law.energy(self.F) * self.dA

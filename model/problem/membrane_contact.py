@@ -197,7 +197,7 @@ class MembranePairContact(_NodalContact):
         msh, V = domain.mesh, problem.V
         self.V, self.comm = V, msh.comm
         owned = V.dofmap.index_map.size_local
-        blocks = np.asarray(fem.locate_dofs_topological(V, 2, domain.region_cells(slave)), dtype=np.int32)
+        blocks = np.unique(compat.cell_dofs(V.dofmap)[domain.region_cells(slave), :3]).astype(np.int32)
         self.slave_blocks = blocks[blocks < owned]
         self.reference = V.tabulate_dof_coordinates()[:, :3]
         self._master_setup(problem)
@@ -290,21 +290,22 @@ class MembranePairContact(_NodalContact):
         self._stamp = current.copy()
 
     def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
-        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices."""
+        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices (built
+        as CSR: the owned rows, three entries in each slave row)."""
         imap = self.V.dofmap.index_map
         n_local, n_global = imap.size_local * 3, imap.size_global * 3
         if self.Pi is not None:
             self.Pi.destroy()
-        Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)), nnz=(3, 3), comm=self.comm)
-        Pi.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        rows = np.asarray(imap.local_to_global(self.slave_blocks.astype(np.int32)), dtype=np.int64)
-        index = PETSc.IntType
-        for c in range(3):
-            for r, cols, w in zip(rows, columns, bary, strict=True):
-                Pi.setValues(np.array([r * 3 + c], dtype=index), (cols * 3 + c).astype(index), w,
-                             addv=PETSc.InsertMode.INSERT)
-        Pi.assemble()
-        self.Pi = Pi
+        counts = np.zeros(n_local, dtype=np.int64)
+        rows = (3 * self.slave_blocks[:, None] + np.arange(3)).ravel()  # local rows, node-major
+        counts[rows] = 3
+        order = np.argsort(rows)
+        cols = (3 * columns[:, None, :] + np.arange(3)[None, :, None]).reshape(-1, 3)[order]
+        vals = np.repeat(bary, 3, axis=0)[order]
+        indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
+        self.Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)),
+                                        csr=(indptr, cols.ravel().astype(PETSc.IntType), vals.ravel()),
+                                        comm=self.comm)
 
     def _form(self, key: str) -> Any:
         if key not in self._compiled:
