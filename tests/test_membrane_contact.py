@@ -34,9 +34,9 @@ def _domain(generator, *args):
     return build_domain(COMM, generator(*args) if COMM.rank == 0 else None)
 
 
-def _balloon_in_cavity(k: float = 1.0):
+def _balloon_in_cavity(k: float = 1.0, augmented: bool = False):
     problem = MembraneProblem(_domain(sphere_octant, 1.0, 0.2), STVK, radial_orientation(), OCTANT_FIXED)
-    contact = ObstacleContact(problem, Sphere((0.0, 0.0, 0.0), R_CAVITY), k, inside=True)
+    contact = ObstacleContact(problem, Sphere((0.0, 0.0, 0.0), R_CAVITY), k, inside=True, augmented=augmented)
     return problem, contact
 
 
@@ -87,15 +87,19 @@ def test_balloon_in_a_rigid_cavity():
     assert pen == pytest.approx(penetration(1.5 * p_touch, 10.0), rel=0.02)
 
 
-def test_inflation_stops_at_the_contact_fraction_of_the_cavity():
+@pytest.mark.parametrize("augmented", [False, True], ids=["penalty", "augmented"])
+def test_inflation_stops_at_the_contact_fraction_of_the_cavity(augmented):
     """The balloon touches the cavity everywhere at once, at p_m(R_c/R): the contact-fraction stop (0.5)
-    finds that pressure (to 1.5 %: the faceted balloon, size 0.2) long before the target volume."""
-    problem, _ = _balloon_in_cavity(1.0)
+    finds that pressure (to 1.5 %: the faceted balloon, size 0.2) long before the target volume; with the
+    augmented Lagrangian too (Uzawa rounds after every equilibrium: no penetration at the stop)."""
+    problem, contact = _balloon_in_cavity(1.0, augmented)
     p_touch = float(balloon_pressure(STVK, 1.0, R_CAVITY))
     steps = inflate_to_volume(problem, target_volume=10.0, dp=0.3 * p_touch, contact_fraction=0.5)
     assert steps[-1].contact_fraction >= 0.5
     assert steps[-1].pressure == pytest.approx(p_touch, rel=0.015)  # measured +0.84 %
     assert all(s.contact_fraction < 0.5 for s in steps if s.pressure < steps[-1].pressure)
+    if augmented:
+        assert contact.report()["max_penetration"] < 1e-9
 
 
 def test_inflation_stops_at_the_contact_fraction_of_a_bone():
@@ -286,3 +290,22 @@ def test_pair_contact_jacobian_with_the_pairing_held():
         errors.append(b1.norm() / Jdu.norm())
     newton.destroy()
     assert errors[1] < 1e-3 and errors[1] < 0.2 * errors[0]
+
+
+def test_augmented_lagrangian_balloon_in_the_cavity():
+    """Augmented Lagrangian (Uzawa): the penetration vanishes and the multiplier (contact pressure per reference
+    area) is lambda_c = (R_c/R)^2 (p - p_m(R_c/R)), from the balance of the penalty case with k delta -> lambda_c."""
+    problem = MembraneProblem(_domain(sphere_octant, 1.0, 0.2), STVK, radial_orientation(), OCTANT_FIXED)
+    contact = ObstacleContact(problem, Sphere((0.0, 0.0, 0.0), R_CAVITY), 1.0, inside=True, augmented=True)
+    p_touch = float(balloon_pressure(STVK, 1.0, R_CAVITY))
+    p = 2.0 * p_touch
+    step = inflate(problem, [0.5 * p_touch, p], uzawa_tolerance=1e-10)[-1]
+    report = contact.report()
+    assert report["max_penetration"] < 1e-10 and contact.uzawa_residual() <= 1e-10
+    assert report["contact_fraction"] == step.contact_fraction == 1.0
+    lam = contact.nodal_pressures()
+    area = contact.lumped_area
+    mean = COMM.allreduce(float(lam @ area), op=MPI.SUM) / COMM.allreduce(float(area.sum()), op=MPI.SUM)
+    assert mean == pytest.approx(R_CAVITY**2 * (p - p_touch), rel=0.02)
+    # the force is the multiplier's resultant: -lambda_c pi R^2 / 4 per axis
+    assert np.allclose(report["force"], -R_CAVITY**2 * (p - p_touch) * np.pi / 4, rtol=0.03)

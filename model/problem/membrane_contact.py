@@ -21,11 +21,17 @@ reference area, lumped to the nodes (m_i = int phi_i dA), whose nodes touch (g_i
 
     fraction = sum_{g_i < 0} m_i / sum_i m_i.
 
+Augmented Lagrangian (``augmented=True``, forms.obstacles.augmented_lagrangian_energy): Pi_c = int (k/2)
+min(g - lambda/k, 0)^2 - lambda^2/(2k) dA with the nodal multiplier lambda >= 0 (the contact pressure per
+reference area), updated by Uzawa, lambda <- max(lambda - k g, 0), between equilibria
+(model.solvers.membrane.inflate) until max |min(g, lambda/k)| <= a tolerance: the penetration vanishes for any k.
+
 Closed form (tests/test_membrane_contact.py): a thin spherical balloon of radius R in a rigid concentric
 cavity of radius R_c > R is free until p = p_m(R_c/R) (p_m(lambda) = w'(lambda)/(R lambda^2),
 model.problem.membrane.balloon_pressure); beyond it d/dr [4 pi R^2 (w + (k/2) delta^2) - p (4/3) pi r^3] = 0
 with r = R_c + delta gives the penetration delta = lambda^2 (p - p_m(lambda)) / k, lambda = (R_c + delta)/R,
-and the contact fraction jumps from 0 to 1.
+and the contact fraction jumps from 0 to 1; with the augmented Lagrangian delta -> 0 and the multiplier is
+lambda_c = (R_c/R)^2 (p - p_m(R_c/R)) (the same balance with k delta -> lambda_c, r = R_c).
 """
 
 from __future__ import annotations
@@ -40,7 +46,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms.obstacles import Obstacle, penalty_energy
+from forms.obstacles import Obstacle, augmented_lagrangian_energy, contact_pressure, penalty_energy
 from model import compat
 from model.problem.membrane import MembraneProblem
 
@@ -137,32 +143,61 @@ class ObstacleContact(_NodalContact):
     side is the obstacle's interior (g = -d). Adds Pi_c to the problem's energy on construction."""
 
     def __init__(self, problem: MembraneProblem, obstacle: Obstacle, k: float, inside: bool = False,
-                 name: str | None = None) -> None:
+                 name: str | None = None, augmented: bool = False) -> None:
         if not (isinstance(k, (int, float)) and np.isfinite(k) and k > 0):
             raise ValueError(f"membrane contact: k must be a finite number > 0, got {k!r}")
         self.obstacle, self.sign = obstacle, -1.0 if inside else 1.0
         self.name = name or type(obstacle).__name__.lower()
+        self.augmented = bool(augmented)
         msh = problem.domain.mesh
         self.k = fem.Constant(msh, PETSc.ScalarType(k))
         x = ufl.SpatialCoordinate(msh) + problem.u
         self.gap = self.sign * obstacle.distance(x)
-        self._setup(problem, penalty_energy(self.gap, self.k) * nodal_measure(problem), nodal_measure(problem))
+        # the augmented Lagrangian's multiplier (the contact pressure per reference area) at the nodes: a scalar
+        # P1 Function, its dof of each node from the collapsed first component of the displacement space
+        Q, to_v = problem.V.sub(0).collapse()
+        self.multiplier = fem.Function(Q, name="contact_pressure")
+        q_of_block = np.full(len(problem.u.x.array) // 3, -1, dtype=np.int64)
+        q_of_block[np.asarray(to_v, dtype=np.int64) // 3] = np.arange(len(to_v))
+        self._q = q_of_block
+        psi = augmented_lagrangian_energy(self.gap, self.multiplier, self.k) if self.augmented \
+            else penalty_energy(self.gap, self.k)
+        self._setup(problem, psi * nodal_measure(problem), nodal_measure(problem))
+        self._q = self._q[: self.n_owned]
 
     def nodal_gaps(self) -> np.ndarray:
         """g at the owned nodes."""
         return self.sign * np.asarray(self.obstacle.distance(self.positions()), dtype=np.float64)
 
+    def nodal_pressures(self) -> np.ndarray:
+        """The contact pressure per reference area at the owned nodes, max(lambda - k g, 0) (lambda = 0 for the
+        plain penalty)."""
+        lam = self.multiplier.x.array[self._q] if self.augmented else 0.0
+        return np.asarray(contact_pressure(self.nodal_gaps(), float(self.k.value), lam))
+
     def touching(self) -> np.ndarray:
-        return self.nodal_gaps() < 0.0
+        return self.nodal_pressures() > 0.0
+
+    def uzawa_residual(self) -> float:
+        """max over the nodes of |min(g, lambda/k)|: 0 at the exact contact solution (g >= 0, lambda >= 0,
+        lambda g = 0). Collective."""
+        lam = self.multiplier.x.array[self._q]
+        local = np.abs(np.minimum(self.nodal_gaps(), lam / float(self.k.value)))
+        return float(self.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX))
+
+    def update_multiplier(self) -> None:
+        """Uzawa: lambda_i <- max(lambda_i - k g_i, 0) at the nodes. Collective (ghosts updated)."""
+        self.multiplier.x.array[self._q] = self.nodal_pressures()
+        self.multiplier.x.scatter_forward()
 
     def report(self) -> dict[str, Any]:
-        """max_penetration = max(0, -min g), force (on the membrane), contact_fraction, active_points (g < 0);
-        the same on every rank. Collective."""
+        """max_penetration = max(0, -min g), force (on the membrane), contact_fraction, active_points (nodes
+        with a contact pressure); the same on every rank. Collective."""
         g = self.nodal_gaps()
         low = self.comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
         return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
                 "contact_fraction": self.contact_fraction(),
-                "active_points": self.comm.allreduce(int(np.sum(g < 0.0)), op=MPI.SUM)}
+                "active_points": self.comm.allreduce(int(np.sum(self.touching())), op=MPI.SUM)}
 
 
 class MembranePairContact(_NodalContact):

@@ -117,14 +117,34 @@ def _solve_at(problem: MembraneProblem, newton: FormNewton, p_from: float, p_to:
         log.info("membrane: Newton failed, cutting the pressure step back to %.6g", target)
 
 
+def _uzawa(problem: MembraneProblem, newton: FormNewton, pressure: float, tolerance: float, max_rounds: int,
+           cutbacks: int) -> int:
+    """Uzawa rounds at a fixed pressure for the augmented contacts (model.problem.membrane_contact): update the
+    multipliers and solve again until max |min(g, lambda/k)| <= ``tolerance``; Newton iterations."""
+    augmented = [c for c in problem.contacts if getattr(c, "augmented", False)]
+    iterations = 0
+    for _ in range(max_rounds):
+        residual = max((c.uzawa_residual() for c in augmented), default=0.0)
+        if residual <= tolerance:
+            return iterations
+        for c in augmented:
+            c.update_multiplier()
+        iterations += _solve_at(problem, newton, pressure, pressure, cutbacks)
+    raise RuntimeError(f"membrane: Uzawa did not reach |min(g, lambda/k)| <= {tolerance:g} in {max_rounds} rounds "
+                       f"at pressure {pressure:.6g} (residual {residual:.3g})")
+
+
 def inflate(problem: MembraneProblem, pressures: np.ndarray | list[float], cutbacks: int = 4,
-            options: dict | None = None) -> list[InflationStep]:
-    """Equilibria at the increasing ``pressures``, each from the previous one (collective)."""
+            options: dict | None = None, uzawa_tolerance: float = 1e-9, max_uzawa: int = 30
+            ) -> list[InflationStep]:
+    """Equilibria at the increasing ``pressures``, each from the previous one (collective). With augmented
+    contacts each equilibrium is followed by Uzawa rounds until max |min(g, lambda/k)| <= ``uzawa_tolerance``."""
     newton = membrane_newton(problem, options)
     steps, previous = [], float(problem.pressure.value)
     try:
         for p in pressures:
             its = _solve_at(problem, newton, previous, float(p), cutbacks)
+            its += _uzawa(problem, newton, float(p), uzawa_tolerance, max_uzawa, cutbacks)
             previous = float(p)
             steps.append(_step(problem, previous, its))
             log.info("membrane: p = %.6g, V = %.6g, %d Newton iterations", previous, steps[-1].volume, its)
@@ -135,13 +155,15 @@ def inflate(problem: MembraneProblem, pressures: np.ndarray | list[float], cutba
 
 def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float, max_steps: int = 200,
                       tolerance: float = 1e-6, cutbacks: int = 4, options: dict | None = None,
-                      contact_fraction: float | None = None, pressure_tolerance: float = 1e-3
-                      ) -> list[InflationStep]:
+                      contact_fraction: float | None = None, pressure_tolerance: float = 1e-3,
+                      uzawa_tolerance: float = 1e-9, max_uzawa: int = 30) -> list[InflationStep]:
     """Grow the pressure by ``dp`` until V(x) >= ``target_volume`` or, if ``contact_fraction`` is given, until
     that fraction of the membrane's area touches its contacts (the stop criteria, module docstring). Volume:
     p is adjusted by the secant method between the last two steps until |V - target| <= tolerance * target.
     Contact fraction: bisection on p to ``pressure_tolerance`` * p. Returns every step; the last is at the
-    target. RuntimeError if ``max_steps`` increments reach neither."""
+    target. Augmented contacts: Uzawa rounds after every equilibrium (as in ``inflate``). RuntimeError if
+    ``max_steps`` increments reach neither."""
+    uzawa = (uzawa_tolerance, max_uzawa)
     if contact_fraction is not None and not 0.0 < contact_fraction <= 1.0:
         raise ValueError(f"inflate_to_volume: contact_fraction must be in (0, 1], got {contact_fraction!r}")
     if contact_fraction is not None and not problem.contacts:
@@ -154,7 +176,7 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
     try:
         for _ in range(max_steps):
             saved = problem.u.x.array.copy()
-            its = _solve_at(problem, newton, p, p + dp, cutbacks)
+            its = _solve_at(problem, newton, p, p + dp, cutbacks) + _uzawa(problem, newton, p + dp, *uzawa, cutbacks)
             p += dp
             steps.append(_step(problem, p, its))
             if contact_fraction is not None and steps[-1].contact_fraction >= contact_fraction:
@@ -169,14 +191,15 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
         above = steps[-1]
         if touched:
             steps += _bisect_fraction(problem, newton, below.pressure, saved, above, contact_fraction,
-                                      pressure_tolerance, cutbacks)
+                                      pressure_tolerance, cutbacks, uzawa)
             return steps
         for _ in range(30):
             if abs(above.volume - target_volume) <= tolerance * target_volume:
                 break
             slope = (above.volume - below.volume) / (above.pressure - below.pressure)
             p_new = above.pressure + (target_volume - above.volume) / slope
-            its = _solve_at(problem, newton, above.pressure, p_new, cutbacks)
+            its = _solve_at(problem, newton, above.pressure, p_new, cutbacks) + _uzawa(problem, newton, p_new, *uzawa,
+                                                                                     cutbacks)
             below, above = above, _step(problem, p_new, its)
             steps.append(above)
     finally:
@@ -185,7 +208,8 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
 
 
 def _bisect_fraction(problem: MembraneProblem, newton: FormNewton, p_low: float, u_low: np.ndarray,
-                     high: InflationStep, target: float, rtol: float, cutbacks: int) -> list[InflationStep]:
+                     high: InflationStep, target: float, rtol: float, cutbacks: int,
+                     uzawa: tuple[float, int]) -> list[InflationStep]:
     """Bisection on p in [p_low, high.pressure] for the smallest pressure with contact fraction >= target; the
     equilibria tried, the last the accepted one (the state left in problem.u)."""
     u_high, tried = problem.u.x.array.copy(), []
@@ -193,7 +217,7 @@ def _bisect_fraction(problem: MembraneProblem, newton: FormNewton, p_low: float,
     while p_high - p_low > rtol * p_high:
         mid = 0.5 * (p_low + p_high)
         problem.u.x.array[:] = u_low
-        its = _solve_at(problem, newton, p_low, mid, cutbacks)
+        its = _solve_at(problem, newton, p_low, mid, cutbacks) + _uzawa(problem, newton, mid, *uzawa, cutbacks)
         step = _step(problem, mid, its)
         tried.append(step)
         if step.contact_fraction >= target:
