@@ -11,7 +11,7 @@
 # ---
 
 # %% [markdown]
-# # Membranes: a balloon, Hencky's disc and the inflation of a patch
+# # Membranes: a balloon, Hencky's disc, the inflation of a patch, contact with bones
 #
 # The thesis (`shared/seeds/turchet-thesis-musculoskeletal.txt`, sec. 3.3.3.1) builds muscles by inflating
 # triangle patches: a 3x2 surface deformation gradient $F$ per triangle, the plane-stress St Venant-Kirchhoff
@@ -25,7 +25,8 @@
 #   $\lambda = r/R$ (from $p\,4\pi r^2 dr = d(4\pi R^2 w)$);
 # * Hencky's clamped circular membrane: $w_0 = c(\nu)\, a\,(pa/Eh)^{1/3}$ with $c(0.3) = 0.6534$,
 #
-# and then runs the thesis' inflation workflow. Run with plain Python; with `CI` set it uses fewer meshes.
+# then runs the thesis' inflation workflow, a balloon against a rigid cavity (closed form with the penalty) and
+# the thesis' two inflation phases against a bone. Run with plain Python; with `CI` set it uses fewer meshes.
 
 # %%
 import sys
@@ -175,3 +176,109 @@ if plt is not None and COMM.size == 1:
     ax.set_aspect("equal")
     fig.tight_layout()
     fig.savefig(OUT / "membrane_inflation.png", dpi=90)
+
+# %% [markdown]
+# ## Contact: the balloon in a rigid cavity
+#
+# The unit balloon (StVK octant) inside a rigid concentric sphere of radius $R_c = 1.1$
+# (`model.problem.membrane_contact.ObstacleContact`, penalty $\Pi_c = \int \tfrac{k}{2}\min(g, 0)^2\,dA$ with
+# the nodal rule, $g = R_c - |x|$). Before contact it follows $p(\lambda)$; it touches everywhere at
+# $p_m(R_c/R)$, where the contact fraction jumps from 0 to 1; beyond, the radius stays at $R_c + \delta$ with
+# $\delta = \lambda^2 (p - p_m(\lambda))/k$ (the energy balance with the penalty term).
+
+# %%
+from forms.obstacles import Capsule, Sphere  # noqa: E402
+from model.experiments.membrane import inflate_extruded_patch  # noqa: E402
+from model.problem.membrane_contact import ObstacleContact  # noqa: E402
+
+stvk, R_c, k = LAWS["StVK (E = 1, nu = 0.3)"], 1.1, 1.0
+domain = build_domain(COMM, sphere_octant(1.0, 0.2 if CI else 0.1) if COMM.rank == 0 else None)
+problem = pm.MembraneProblem(domain, stvk, pm.radial_orientation(), {"x0": (0,), "y0": (1,), "z0": (2,)})
+cavity = ObstacleContact(problem, Sphere((0.0, 0.0, 0.0), R_c), k, inside=True)
+p_touch = float(pm.balloon_pressure(stvk, 1.0, R_c))
+pressures = p_touch * np.sort(np.r_[np.linspace(0.3, 3.0, 10 if CI else 19), 0.98, 1.01, 1.04])
+
+
+def closed_radius(p: float) -> float:
+    """The free balloon's r(p) (StVK: p(lambda) increases), or R_c + delta with delta = lambda^2 (p - p_m) / k."""
+    grid = np.linspace(1.0, 1.6, 4001)
+    lam = float(np.interp(p, pm.balloon_pressure(stvk, 1.0, grid), grid))
+    if lam > R_c:
+        lam = R_c
+        for _ in range(60):
+            lam = R_c + lam**2 * (p - float(pm.balloon_pressure(stvk, 1.0, lam))) / k
+    return lam
+
+
+radius, fraction, closed = [], [], []
+for p in pressures:
+    inflate(problem, [p])
+    x = cavity.positions()
+    area = cavity.lumped_area
+    radius.append(COMM.allreduce(float(np.linalg.norm(x, axis=1) @ area), op=MPI.SUM)
+                  / COMM.allreduce(float(area.sum()), op=MPI.SUM))
+    fraction.append(cavity.contact_fraction())
+    lam = closed_radius(p)
+    closed.append(lam)
+    print(f"p / p_touch = {p / p_touch:.2f}: mean radius {radius[-1]:.5f} (closed form {lam:.5f}), "
+          f"contact fraction {fraction[-1]:.2f}")
+assert max(abs(r / c - 1) for r, c in zip(radius, closed)) < 0.01
+
+# %%
+if plt is not None:
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.8))
+    dense = np.linspace(pressures[0], pressures[-1], 300)
+    ax1.plot(dense / p_touch, [closed_radius(p) for p in dense], "-", color="C3", label="closed form")
+    ax1.plot(pressures / p_touch, radius, "o", ms=4, color="C0", label="FE (area-weighted node radius)")
+    ax1.axhline(R_c, color="0.6", ls=":", lw=1)
+    ax1.set_xlabel("p / p_m(R_c / R)")
+    ax1.set_ylabel("radius r")
+    ax1.legend(fontsize=8)
+    ax2.step(pressures / p_touch, fraction, where="post", color="C2")
+    ax2.set_xlabel("p / p_m(R_c / R)")
+    ax2.set_ylabel("contact fraction")
+    for ax in (ax1, ax2):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(OUT / "membrane_cavity.png", dpi=90)
+
+# %% [markdown]
+# ## The thesis' two phases against a bone
+#
+# The patch is extruded by a small offset (every free vertex moved along its normal), inflated without contact
+# to a first volume, a new rest shape is made by alternated Laplacian smoothing and tangential relaxation of
+# the inflated vertices down to a volume estimate, and that rest shape is inflated against a capsule bone
+# until 5 % of its area touches it (the contact-fraction stop), then closed and tetrahedralised.
+
+# %%
+bone = Capsule((-2.0, 0.0, 0.75), (2.0, 0.0, 0.75), 0.3)
+two = inflate_extruded_patch(MembraneNeoHookean(1.0, 0.01), offset=0.03, first_volume=0.8, rest_volume=0.4,
+                             target_volume=2.0, obstacles=[(bone, 10.0, False)], contact_fraction=0.05)
+report = two.contacts[0].report()
+print(f"phase 1: V = {two.first_steps[-1].volume:.4f} at p = {two.first_steps[-1].pressure:.4e}; "
+      f"phase 2: V = {two.steps[-1].volume:.4f}, contact fraction {report['contact_fraction']:.3f} at "
+      f"p = {two.steps[-1].pressure:.4e}, max penetration {report['max_penetration']:.2e}, "
+      f"force {np.round(report['force'], 5)}")
+assert report["contact_fraction"] >= 0.05
+
+# %%
+if plt is not None and COMM.size == 1:
+    from model.experiments.membrane import deformed_points
+
+    final = deformed_points(two.problem, len(two.extruded))
+    fig, ax = plt.subplots(figsize=(7, 3.4))
+    for points, label, style in ((two.extruded, "extruded patch", "C7."),
+                                 (two.smoothing.points, "smoothed rest shape", "C1."),
+                                 (final, "inflated against the bone", "C0.")):
+        near = np.abs(points[:, 1]) < 0.1
+        order = np.argsort(points[near, 0])
+        ax.plot(points[near, 0][order], points[near, 2][order], style + "-", ms=3, lw=0.8, label=label)
+    t = np.linspace(0, 2 * np.pi, 200)
+    ax.plot(0.3 * np.cos(t), 0.75 + 0.3 * np.sin(t), "k-", lw=1, label="capsule bone (section)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("z")
+    ax.legend(fontsize=7, loc="lower center")
+    ax.set_title("nodes with |y| < 0.1, joined by x", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(OUT / "membrane_bone.png", dpi=90)

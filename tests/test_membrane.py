@@ -201,7 +201,8 @@ def test_inflation_workflow_patch_to_muscle():
 
 @serial_only
 def test_example_script() -> None:
-    """examples/membrane_balloon.py: the printed balloon errors < 1%, Hencky's error < 2%, the target volume."""
+    """examples/membrane_balloon.py: the printed balloon errors < 1%, Hencky's error < 2%, the target volume, the
+    balloon in the rigid cavity on its closed form (1e-3) and the contact-fraction stop at p_m(R_c) (1.5 %)."""
     import re
     import subprocess
     import sys
@@ -213,3 +214,7 @@ def test_example_script() -> None:
     assert len(errors) == 8 and max(abs(e) for e in errors) < 0.01
     assert abs(float(re.search(r"error (\S+)$", proc.stdout, re.M).group(1))) < 0.02
     assert "inflation: V = 0.500000" in proc.stdout
+    cavity = [[float(v) for v in line.split()[1:]] for line in proc.stdout.splitlines() if line.startswith("cavity: ")]
+    assert len(cavity) == 4 and all(abs(mean / closed - 1) < 1e-3 for _, mean, closed, _ in cavity)
+    assert [fraction for *_, fraction in cavity] == [0.0, 0.0, 1.0, 1.0]
+    assert abs(float(re.search(r"p / p_m\(R_c\) - 1 = (\S+)$", proc.stdout, re.M).group(1))) < 0.015

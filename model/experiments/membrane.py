@@ -15,6 +15,26 @@
 
 The flat disc has no transverse stiffness at zero pressure, so Newton starts from a small paraboloid bump
 (height ``bump`` a); the equilibria do not depend on it.
+
+    result = inflate_extruded_patch(law, offset=0.02, first_volume=0.8, rest_volume=0.4, target_volume=0.8,
+                                    obstacles=[(Capsule(...), k, False)], contact_fraction=0.2)
+
+The thesis' two phases (ch. 3.3.3), on the same disc patch:
+
+1. the patch is extruded by ``offset`` along its normal (meshes.membrane.extrude; the clamped rim stays) and the
+   extrusion is inflated without contact until ``first_volume`` ("full inflation");
+2. a new rest shape: alternated Laplacian smoothing and tangential relaxation of the inflated (free) vertices
+   until the enclosed volume falls to ``rest_volume`` (meshes.membrane.smooth_rest_shape);
+3. the membrane on that rest shape, with penalty contact against the ``obstacles``
+   (model.problem.membrane_contact.ObstacleContact), is inflated until ``target_volume`` or
+   ``contact_fraction`` of its area touches them. The thesis starts its (implicit Euler) dynamics at the
+   extruded positions, u0 = extruded - rest ("the vertex positions of the initial extruded vertices
+   constitute the initial conditions applied to the rest shape, so there is a non-negative elastic
+   potential"); ``initial_energy`` records that potential. A quasi-static pressure stepping cannot start
+   there: the compressed, nearly flat state snaps through to the rest dome, where Newton fails (measured:
+   DIVERGED_MAX_IT at the first pressure step). Each pressure's equilibrium is on the branch that starts at
+   the rest shape (u = 0, the equilibrium at p = 0), so the stepping starts from u = 0;
+4. closed with the flat patch as base, tetrahedralised, Laplace fibres, as above.
 """
 
 from __future__ import annotations
@@ -26,17 +46,27 @@ import numpy as np
 from mpi4py import MPI
 
 from forms.membrane import MembraneLaw
+from forms.obstacles import Obstacle
 from meshes.data import MeshData
-from meshes.membrane import close_with_base, disc_surface, tetrahedralise
+from meshes.membrane import (
+    SmoothedShape,
+    SurfaceMeshData,
+    close_with_base,
+    disc_surface,
+    extrude,
+    smooth_rest_shape,
+    tetrahedralise,
+)
 from model import compat
 from model.domain.distribute import Domain, build_domain
 from model.fields.fibres import FibreField
-from model.problem.membrane import MembraneProblem, axis_orientation
+from model.problem.membrane import MembraneProblem, axis_orientation, triangle_orientation
+from model.problem.membrane_contact import ObstacleContact
 from model.solvers.membrane import InflationStep, inflate_to_volume
 
 log = logging.getLogger(__name__)
 
-__all__ = ["InflatedPatch", "deformed_points", "inflate_patch"]
+__all__ = ["InflatedPatch", "deformed_points", "inflate_extruded_patch", "inflate_patch", "set_nodal_displacement"]
 
 
 @dataclass
@@ -49,6 +79,13 @@ class InflatedPatch:
     domain: Domain
     fibres: FibreField
     mesh_data: MeshData | None
+    #: inflate_extruded_patch only: the first phase's steps, the extruded and the smoothed rest points (rank 0)
+    first_steps: list[InflationStep] | None = None
+    extruded: np.ndarray | None = None
+    smoothing: SmoothedShape | None = None
+    contacts: list[ObstacleContact] | None = None
+    #: the second phase's elastic energy at the extruded positions (>= 0, the thesis' initial condition)
+    initial_energy: float | None = None
 
 
 def deformed_points(problem: MembraneProblem, num_points: int) -> np.ndarray | None:
@@ -70,6 +107,34 @@ def deformed_points(problem: MembraneProblem, num_points: int) -> np.ndarray | N
     return points
 
 
+def set_nodal_displacement(problem: MembraneProblem, values: np.ndarray) -> None:
+    """u = values[input index] at every node (``values`` (num_points, 3), the same on every rank)."""
+    msh = problem.domain.mesh
+    geometry = compat.geometry_dofs(msh)[:, :3]
+    dofs = compat.cell_dofs(problem.V.dofmap)[: len(geometry), :3]
+    ids = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[geometry].reshape(-1)
+    array = problem.u.x.array.reshape(-1, 3)
+    array[dofs.reshape(-1)] = np.asarray(values, dtype=np.float64)[ids]
+    problem.u.x.scatter_forward()
+
+
+def _close_and_mesh(data: SurfaceMeshData | None, deformed: np.ndarray | None, radius: float, end: float,
+                    tet_size: float, comm: MPI.Comm) -> tuple[Domain, FibreField, MeshData | None]:
+    """Close the inflated patch with the flat ``data`` as base, tetrahedralise, Laplace fibres (steps 2-3)."""
+    mesh_data = None
+    if comm.rank == 0:
+        rim = np.unique(data.facets[data.facet_tags == data.boundary_names["rim"]])
+        points, triangles, side = close_with_base(data, deformed, rim)
+        centre_x = np.concatenate([np.full(len(data.cells), np.nan), data.points[data.cells].mean(axis=1)[:, 0]])
+        groups = [(triangles, side)]
+        for tag, mask in ((3, centre_x < -end * radius), (4, centre_x > end * radius)):  # base triangles only
+            groups.append((triangles[mask], np.full(int(mask.sum()), tag, np.int32)))
+        mesh_data = tetrahedralise(points, np.vstack([g[0] for g in groups]), np.concatenate([g[1] for g in groups]),
+                                   {"patch": 1, "base": 2, "origin": 3, "insertion": 4}, tet_size)
+    tet_domain = build_domain(comm, mesh_data)
+    return tet_domain, FibreField(tet_domain).laplace("origin", "insertion"), mesh_data
+
+
 def inflate_patch(law: MembraneLaw, target_volume: float, radius: float = 1.0, size: float = 0.15,
                   dp: float | None = None, tet_size: float = 0.15, end: float = 0.6, bump: float = 0.05,
                   comm: MPI.Comm = MPI.COMM_WORLD) -> InflatedPatch:
@@ -85,17 +150,46 @@ def inflate_patch(law: MembraneLaw, target_volume: float, radius: float = 1.0, s
     steps = inflate_to_volume(problem, target_volume, dp)
     num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
     deformed = deformed_points(problem, num_points)
-    mesh_data = None
-    if comm.rank == 0:
-        rim = np.unique(data.facets[data.facet_tags == data.boundary_names["rim"]])
-        points, triangles, side = close_with_base(data, deformed, rim)
-        centre_x = np.concatenate([np.full(len(data.cells), np.nan), data.points[data.cells].mean(axis=1)[:, 0]])
-        groups = [(triangles, side)]
-        for tag, mask in ((3, centre_x < -end * radius), (4, centre_x > end * radius)):  # base triangles only
-            groups.append((triangles[mask], np.full(int(mask.sum()), tag, np.int32)))
-        mesh_data = tetrahedralise(points, np.vstack([g[0] for g in groups]), np.concatenate([g[1] for g in groups]),
-                                   {"patch": 1, "base": 2, "origin": 3, "insertion": 4}, tet_size)
-    tet_domain = build_domain(comm, mesh_data)
-    fibres = FibreField(tet_domain).laplace("origin", "insertion")
+    tet_domain, fibres, mesh_data = _close_and_mesh(data, deformed, radius, end, tet_size, comm)
     log.info("inflate_patch: V = %.6g at p = %.6g after %d steps", steps[-1].volume, steps[-1].pressure, len(steps))
     return InflatedPatch(problem, steps, tet_domain, fibres, mesh_data)
+
+
+def inflate_extruded_patch(law: MembraneLaw, offset: float, first_volume: float, rest_volume: float,
+                           target_volume: float, obstacles: list[tuple[Obstacle, float, bool]] | None = None,
+                           contact_fraction: float | None = None, radius: float = 1.0, size: float = 0.15,
+                           dp: float | None = None, tet_size: float = 0.15, end: float = 0.6,
+                           comm: MPI.Comm = MPI.COMM_WORLD) -> InflatedPatch:
+    """The thesis' two inflation phases (module docstring) on a disc of ``radius`` meshed at ``size``;
+    ``obstacles``: (obstacle, penalty k, inside) for the second phase. Collective."""
+    data = disc_surface(radius, size) if comm.rank == 0 else None
+    rim = np.unique(data.facets[data.facet_tags == data.boundary_names["rim"]]) if comm.rank == 0 else None
+    extruded = extrude(data, offset, rim) if comm.rank == 0 else None
+    if dp is None:
+        dp = 0.05 * law.equibiaxial(1.1)[1] / radius
+    # phase 1: the extrusion inflated without contact
+    first = MembraneProblem(build_domain(comm, extruded), law, axis_orientation(), {"rim": (0, 1, 2)})
+    first_steps = inflate_to_volume(first, first_volume, dp)
+    num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
+    inflated = deformed_points(first, num_points)
+    # the new rest shape: smoothing and relaxation of the free nodes down to rest_volume
+    smoothing = smooth_rest_shape(inflated, data.cells, rim, rest_volume) if comm.rank == 0 else None
+    rest = None
+    if comm.rank == 0:
+        rest = SurfaceMeshData(smoothing.points, data.cells, data.cell_tags, data.facets, data.facet_tags,
+                               data.region_names, data.boundary_names)
+    orientation = comm.bcast((rest.points, rest.cells) if comm.rank == 0 else None)
+    problem = MembraneProblem(build_domain(comm, rest), law, triangle_orientation(*orientation), {"rim": (0, 1, 2)})
+    u0 = comm.bcast(extruded.points - rest.points if comm.rank == 0 else None)
+    set_nodal_displacement(problem, u0)
+    initial_energy = problem.elastic_energy()
+    problem.u.x.array[:] = 0.0
+    contacts = [ObstacleContact(problem, obstacle, k, inside) for obstacle, k, inside in (obstacles or [])]
+    # phase 2: from the extruded positions, with contact, to the target volume or contact fraction
+    steps = inflate_to_volume(problem, target_volume, dp, contact_fraction=contact_fraction)
+    deformed = deformed_points(problem, num_points)
+    tet_domain, fibres, mesh_data = _close_and_mesh(data, deformed, radius, end, tet_size, comm)
+    log.info("inflate_extruded_patch: V = %.6g, contact fraction %.4g at p = %.6g after %d + %d steps",
+             steps[-1].volume, steps[-1].contact_fraction, steps[-1].pressure, len(first_steps), len(steps))
+    return InflatedPatch(problem, steps, tet_domain, fibres, mesh_data, first_steps,
+                         extruded.points if comm.rank == 0 else None, smoothing, contacts, initial_energy)

@@ -46,7 +46,8 @@ from model.domain.distribute import Domain
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Hencky", "MembraneProblem", "axis_orientation", "balloon_pressure", "hencky", "radial_orientation"]
+__all__ = ["Hencky", "MembraneProblem", "axis_orientation", "balloon_pressure", "hencky", "radial_orientation",
+           "triangle_orientation"]
 
 Orientation = Callable[[np.ndarray], np.ndarray]
 
@@ -61,6 +62,17 @@ def axis_orientation(axis: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> Orie
     """Normals along ``axis`` (a surface that is a graph over the plane normal to it, e.g. a disc: +z)."""
     a = np.asarray(axis, dtype=np.float64)
     return lambda centroids: np.broadcast_to(a, centroids.shape)
+
+
+def triangle_orientation(points: np.ndarray, cells: np.ndarray) -> Orientation:
+    """Normals of the given triangles' right-handed vertex order ((x1 - x0) x (x2 - x0)), looked up by centroid:
+    for a surface mesh whose input triangles are oriented (e.g. an inflated patch, whatever its shape)."""
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, dtype=np.float64)[np.asarray(cells, dtype=np.int64)]
+    normals = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    tree = cKDTree(p.mean(axis=1))
+    return lambda centroids: normals[tree.query(centroids)[1]]
 
 
 def _normal_field(domain: Domain, orientation: Orientation) -> fem.Function:
@@ -85,7 +97,8 @@ class MembraneProblem:
     """The membrane energy Pi(u) = int w(F) dA - p V(x) on ``domain`` (module docstring).
 
     Attributes: ``u`` (displacement), ``pressure`` (fem.Constant), ``energy`` (the UFL form Pi), ``residual``
-    (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0).
+    (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0), ``contacts`` (the contact
+    terms added to Pi, model.problem.membrane_contact).
     """
 
     def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
@@ -100,7 +113,10 @@ class MembraneProblem:
         self.pressure = fem.Constant(msh, PETSc.ScalarType(0.0))
         self.normal = _normal_field(domain, orientation)
         self.frame = tangent_frame(msh, self.normal)
-        self.dA = ufl.dx(domain=msh, metadata={"quadrature_degree": quadrature_degree})
+        # the cell tags as subdomain data: dolfinx 0.9 needs the same for every cell integral of a form, and the
+        # contact terms (model.problem.membrane_contact) integrate over tagged cells
+        self.dA = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags,
+                              metadata={"quadrature_degree": quadrature_degree})
         X = ufl.SpatialCoordinate(msh)
         self.F = membrane_deformation_gradient(self.u, self.frame)
         self.stretch_energy = law.energy(self.F) * self.dA
@@ -120,6 +136,12 @@ class MembraneProblem:
         self._volume = fem.form(self.volume_form)
         self._area = fem.form(fem.Constant(msh, PETSc.ScalarType(1.0)) * self.dA)
         self._stretch = fem.form(self.stretch_energy)
+        self.contacts: list = []  # model.problem.membrane_contact objects (add_energy registers their energies)
+
+    def add_energy(self, energy: ufl.Form) -> None:
+        """Pi <- Pi + energy (e.g. a contact penalty), and the residual again; before a solver is made."""
+        self.energy = self.energy + energy
+        self.residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
 
     def _sum(self, form: fem.Form) -> float:
         return float(self.domain.mesh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))

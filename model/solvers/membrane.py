@@ -2,6 +2,13 @@
 
     steps = inflate(problem, pressures)                       # one equilibrium per pressure, in order
     steps = inflate_to_volume(problem, target, dp)            # grow p by dp until V >= target, then secant on p
+    steps = inflate_to_volume(problem, target, dp, contact_fraction=0.3)   # ... or until 30 % of it touches
+
+The contact-fraction stop (thesis ch. 3.3.3: "until a desired volume amount is achieved or until a specified
+percentage of the total area is in contact"): the fraction of the membrane's reference area whose nodes touch
+a bone or another membrane (model.problem.membrane_contact.contact_fraction) is piecewise constant in p, so the
+pressure where it first reaches the target is found by bisection between the last two pressure steps, to
+``pressure_tolerance`` times p; the last step is the smallest pressure found with fraction >= target.
 
 Each step solves dPi/du = 0 (symmetric Jacobian, MUMPS LU) from the previous state and records the pressure,
 the volume V(x), the elastic energy and Newton's iterations. A step whose Newton fails is retried with the
@@ -14,29 +21,77 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+from dolfinx.fem import petsc as fem_petsc
+from petsc4py import PETSc
 
+from model import compat
 from model.problem.membrane import MembraneProblem
+from model.problem.membrane_contact import contact_fraction as fraction_in_contact
 from model.solvers.form_newton import FormNewton
 
 log = logging.getLogger(__name__)
 
-__all__ = ["InflationStep", "inflate", "inflate_to_volume", "membrane_newton"]
+__all__ = ["CoupledNewton", "InflationStep", "inflate", "inflate_to_volume", "membrane_newton"]
 
 
 @dataclass(frozen=True)
 class InflationStep:
-    """One converged equilibrium: pressure, enclosed volume, elastic energy, Newton iterations."""
+    """One converged equilibrium: pressure, enclosed volume, elastic energy, Newton iterations, and the fraction
+    of the membrane's area in contact (0 without contacts)."""
 
     pressure: float
     volume: float
     energy: float
     iterations: int
+    contact_fraction: float = 0.0
+
+
+def _step(problem: MembraneProblem, pressure: float, iterations: int) -> InflationStep:
+    return InflationStep(pressure, problem.volume(), problem.elastic_energy(), iterations,
+                         fraction_in_contact(problem))
+
+
+class CoupledNewton(FormNewton):
+    """FormNewton plus the membrane-membrane contacts' couplings (model.problem.membrane_contact
+    .MembranePairContact): their pairing is updated before every assembly, the residual gets Pi^T dPi_c/dz and
+    the Jacobian the coupling matrices (Dirichlet rows and columns left to the identity rows)."""
+
+    def __init__(self, problem: MembraneProblem, couplings: list, options: dict) -> None:
+        self.couplings = couplings
+
+        def refresh() -> None:
+            for c in couplings:
+                c.update()
+
+        super().__init__(problem.residual, problem.u, problem.bcs, options=options, before_assembly=refresh)
+
+    def _residual(self, snes: PETSc.SNES, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        self._copy_in(x)
+        with b.localForm() as local:
+            local.set(0.0)
+        fem_petsc.assemble_vector(b, self.residual)
+        compat.apply_lifting(b, [self.jacobian], bcs=[self.bcs], x0=[x], alpha=-1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        for c in self.couplings:
+            c.add_residual(b)
+        compat.set_bc(b, self.bcs, x, -1.0)
+
+    def _jacobian(self, snes: PETSc.SNES, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
+        super()._jacobian(snes, x, A, P)
+        for c in self.couplings:
+            c.add_jacobian(A, self.bcs)
+        A.assemble()
 
 
 def membrane_newton(problem: MembraneProblem, options: dict | None = None) -> FormNewton:
-    """A FormNewton on the problem's residual (Newton with a backtracking line search by default)."""
-    opts = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_atol": 1e-11, "snes_max_it": 40}
-    return FormNewton(problem.residual, problem.u, problem.bcs, options={**opts, **(options or {})})
+    """A FormNewton on the problem's residual (Newton with a backtracking line search by default); a
+    CoupledNewton when the membrane has membrane-membrane contacts."""
+    opts = {"snes_linesearch_type": "bt", "snes_rtol": 1e-10, "snes_atol": 1e-11, "snes_max_it": 40,
+            **(options or {})}
+    couplings = [c for c in problem.contacts if hasattr(c, "add_jacobian")]
+    if couplings:
+        return CoupledNewton(problem, couplings, opts)
+    return FormNewton(problem.residual, problem.u, problem.bcs, options=opts)
 
 
 def _solve_at(problem: MembraneProblem, newton: FormNewton, p_from: float, p_to: float, cutbacks: int) -> int:
@@ -62,16 +117,36 @@ def _solve_at(problem: MembraneProblem, newton: FormNewton, p_from: float, p_to:
         log.info("membrane: Newton failed, cutting the pressure step back to %.6g", target)
 
 
+def _uzawa(problem: MembraneProblem, newton: FormNewton, pressure: float, tolerance: float, max_rounds: int,
+           cutbacks: int) -> int:
+    """Uzawa rounds at a fixed pressure for the augmented contacts (model.problem.membrane_contact): update the
+    multipliers and solve again until max |min(g, lambda/k)| <= ``tolerance``; Newton iterations."""
+    augmented = [c for c in problem.contacts if getattr(c, "augmented", False)]
+    iterations = 0
+    for _ in range(max_rounds):
+        residual = max((c.uzawa_residual() for c in augmented), default=0.0)
+        if residual <= tolerance:
+            return iterations
+        for c in augmented:
+            c.update_multiplier()
+        iterations += _solve_at(problem, newton, pressure, pressure, cutbacks)
+    raise RuntimeError(f"membrane: Uzawa did not reach |min(g, lambda/k)| <= {tolerance:g} in {max_rounds} rounds "
+                       f"at pressure {pressure:.6g} (residual {residual:.3g})")
+
+
 def inflate(problem: MembraneProblem, pressures: np.ndarray | list[float], cutbacks: int = 4,
-            options: dict | None = None) -> list[InflationStep]:
-    """Equilibria at the increasing ``pressures``, each from the previous one (collective)."""
+            options: dict | None = None, uzawa_tolerance: float = 1e-9, max_uzawa: int = 30
+            ) -> list[InflationStep]:
+    """Equilibria at the increasing ``pressures``, each from the previous one (collective). With augmented
+    contacts each equilibrium is followed by Uzawa rounds until max |min(g, lambda/k)| <= ``uzawa_tolerance``."""
     newton = membrane_newton(problem, options)
     steps, previous = [], float(problem.pressure.value)
     try:
         for p in pressures:
             its = _solve_at(problem, newton, previous, float(p), cutbacks)
+            its += _uzawa(problem, newton, float(p), uzawa_tolerance, max_uzawa, cutbacks)
             previous = float(p)
-            steps.append(InflationStep(previous, problem.volume(), problem.elastic_energy(), its))
+            steps.append(_step(problem, previous, its))
             log.info("membrane: p = %.6g, V = %.6g, %d Newton iterations", previous, steps[-1].volume, its)
     finally:
         newton.destroy()
@@ -79,20 +154,34 @@ def inflate(problem: MembraneProblem, pressures: np.ndarray | list[float], cutba
 
 
 def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float, max_steps: int = 200,
-                      tolerance: float = 1e-6, cutbacks: int = 4, options: dict | None = None
-                      ) -> list[InflationStep]:
-    """Grow the pressure by ``dp`` until V(x) >= ``target_volume`` (the stop criterion), then adjust p by the
-    secant method between the last two steps until |V - target| <= tolerance * target. Returns every step;
-    the last is at the target volume. RuntimeError if ``max_steps`` increments do not reach it."""
+                      tolerance: float = 1e-6, cutbacks: int = 4, options: dict | None = None,
+                      contact_fraction: float | None = None, pressure_tolerance: float = 1e-3,
+                      uzawa_tolerance: float = 1e-9, max_uzawa: int = 30) -> list[InflationStep]:
+    """Grow the pressure by ``dp`` until V(x) >= ``target_volume`` or, if ``contact_fraction`` is given, until
+    that fraction of the membrane's area touches its contacts (the stop criteria, module docstring). Volume:
+    p is adjusted by the secant method between the last two steps until |V - target| <= tolerance * target.
+    Contact fraction: bisection on p to ``pressure_tolerance`` * p. Returns every step; the last is at the
+    target. Augmented contacts: Uzawa rounds after every equilibrium (as in ``inflate``). RuntimeError if
+    ``max_steps`` increments reach neither."""
+    uzawa = (uzawa_tolerance, max_uzawa)
+    if contact_fraction is not None and not 0.0 < contact_fraction <= 1.0:
+        raise ValueError(f"inflate_to_volume: contact_fraction must be in (0, 1], got {contact_fraction!r}")
+    if contact_fraction is not None and not problem.contacts:
+        raise ValueError("inflate_to_volume: contact_fraction needs a contact on the membrane (none added)")
     newton = membrane_newton(problem, options)
     steps: list[InflationStep] = []
     p = float(problem.pressure.value)
-    start = InflationStep(p, problem.volume(), problem.elastic_energy(), 0)
+    start = _step(problem, p, 0)
+    touched = False
     try:
         for _ in range(max_steps):
-            its = _solve_at(problem, newton, p, p + dp, cutbacks)
+            saved = problem.u.x.array.copy()
+            its = _solve_at(problem, newton, p, p + dp, cutbacks) + _uzawa(problem, newton, p + dp, *uzawa, cutbacks)
             p += dp
-            steps.append(InflationStep(p, problem.volume(), problem.elastic_energy(), its))
+            steps.append(_step(problem, p, its))
+            if contact_fraction is not None and steps[-1].contact_fraction >= contact_fraction:
+                touched = True
+                break
             if steps[-1].volume >= target_volume:
                 break
         else:
@@ -100,14 +189,42 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
                                f"{max_steps} pressure steps (p = {p:.6g})")
         below = steps[-2] if len(steps) > 1 else start
         above = steps[-1]
+        if touched:
+            steps += _bisect_fraction(problem, newton, below.pressure, saved, above, contact_fraction,
+                                      pressure_tolerance, cutbacks, uzawa)
+            return steps
         for _ in range(30):
             if abs(above.volume - target_volume) <= tolerance * target_volume:
                 break
             slope = (above.volume - below.volume) / (above.pressure - below.pressure)
             p_new = above.pressure + (target_volume - above.volume) / slope
-            its = _solve_at(problem, newton, above.pressure, p_new, cutbacks)
-            below, above = above, InflationStep(p_new, problem.volume(), problem.elastic_energy(), its)
+            its = _solve_at(problem, newton, above.pressure, p_new, cutbacks) + _uzawa(problem, newton, p_new, *uzawa,
+                                                                                     cutbacks)
+            below, above = above, _step(problem, p_new, its)
             steps.append(above)
     finally:
         newton.destroy()
     return steps
+
+
+def _bisect_fraction(problem: MembraneProblem, newton: FormNewton, p_low: float, u_low: np.ndarray,
+                     high: InflationStep, target: float, rtol: float, cutbacks: int,
+                     uzawa: tuple[float, int]) -> list[InflationStep]:
+    """Bisection on p in [p_low, high.pressure] for the smallest pressure with contact fraction >= target; the
+    equilibria tried, the last the accepted one (the state left in problem.u)."""
+    u_high, tried = problem.u.x.array.copy(), []
+    p_high = high.pressure
+    while p_high - p_low > rtol * p_high:
+        mid = 0.5 * (p_low + p_high)
+        problem.u.x.array[:] = u_low
+        its = _solve_at(problem, newton, p_low, mid, cutbacks) + _uzawa(problem, newton, mid, *uzawa, cutbacks)
+        step = _step(problem, mid, its)
+        tried.append(step)
+        if step.contact_fraction >= target:
+            p_high, u_high, high = mid, problem.u.x.array.copy(), step
+        else:
+            p_low, u_low = mid, problem.u.x.array.copy()
+    problem.u.x.array[:] = u_high
+    problem.pressure.value = p_high
+    log.info("membrane: contact fraction %.4g >= %.4g at p = %.6g", high.contact_fraction, target, p_high)
+    return [*tried, high]

@@ -1,0 +1,421 @@
+"""Contact of a membrane (model.problem.membrane.MembraneProblem) with rigid bones: penalty, nodal rule, UFL.
+
+    contact = ObstacleContact(problem, Sphere((0, 0, 0), 1.2), k=1e3, inside=True)   # adds its energy to Pi
+    inflate(problem, pressures); contact.report()   # penetration, force, contact fraction
+
+A rigid obstacle (forms.obstacles: Plane, Sphere, Capsule; signed distance d > 0 on its free side) gives the gap
+of the current point x = X + u of the membrane,
+
+    g(x) = s d(x),   s = +1 (the membrane stays outside the obstacle: a bone) or -1 (``inside``: the membrane
+                     stays inside it, e.g. a balloon in a rigid spherical cavity),
+
+and the penalty energy, integrated over the reference membrane with the nodal ("vertex") rule (A/3) sum over
+each triangle's vertices (a node-by-node constraint, P1),
+
+    Pi_c = int_S0 (k/2) min(g, 0)^2 dA          (forms.obstacles.penalty_energy),
+
+k > 0 a stiffness per reference area per length. UFL derives the residual and Newton matrix of Pi + Pi_c. The
+contact pressure per reference area is p_c = k max(-g, 0) (forms.obstacles.contact_pressure), the force on the
+membrane F = -dPi_c/du summed over the nodes (= int p_c grad d dA), and the contact fraction the share of the
+reference area, lumped to the nodes (m_i = int phi_i dA), whose nodes touch (g_i < 0):
+
+    fraction = sum_{g_i < 0} m_i / sum_i m_i.
+
+Augmented Lagrangian (``augmented=True``, forms.obstacles.augmented_lagrangian_energy): Pi_c = int (k/2)
+min(g - lambda/k, 0)^2 - lambda^2/(2k) dA with the nodal multiplier lambda >= 0 (the contact pressure per
+reference area), updated by Uzawa, lambda <- max(lambda - k g, 0), between equilibria
+(model.solvers.membrane.inflate) until max |min(g, lambda/k)| <= a tolerance: the penetration vanishes for any k.
+
+Closed form (tests/test_membrane_contact.py): a thin spherical balloon of radius R in a rigid concentric
+cavity of radius R_c > R is free until p = p_m(R_c/R) (p_m(lambda) = w'(lambda)/(R lambda^2),
+model.problem.membrane.balloon_pressure); beyond it d/dr [4 pi R^2 (w + (k/2) delta^2) - p (4/3) pi r^3] = 0
+with r = R_c + delta gives the penetration delta = lambda^2 (p - p_m(lambda)) / k, lambda = (R_c + delta)/R,
+and the contact fraction jumps from 0 to 1; with the augmented Lagrangian delta -> 0 and the multiplier is
+lambda_c = (R_c/R)^2 (p - p_m(R_c/R)) (the same balance with k delta -> lambda_c, r = R_c).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from forms.obstacles import Obstacle, augmented_lagrangian_energy, contact_pressure, penalty_energy
+from model import compat
+from model.problem.membrane import MembraneProblem
+
+log = logging.getLogger(__name__)
+
+__all__ = ["MembranePairContact", "ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure"]
+
+#: the nodal quadrature on a triangle: (A/3) at each vertex (reference triangle of area 1/2)
+VERTEX_RULE = {"quadrature_rule": "custom", "quadrature_degree": 1,
+               "quadrature_points": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+               "quadrature_weights": np.full(3, 1.0 / 6.0)}
+
+
+def nodal_measure(problem: MembraneProblem, region: str | None = None) -> ufl.Measure:
+    """dA over the membrane's cells (or its cell region ``region``) with the vertex rule.
+
+    Always restricted to tagged cells: on dolfinx 0.5 FFCx merges two quadrature rules of the same (untagged)
+    cell integral into one kernel that does not compile on a manifold (J declared twice)."""
+    dx = ufl.Measure("dx", domain=problem.domain.mesh, subdomain_data=problem.domain.cell_tags,
+                     metadata=dict(VERTEX_RULE))
+    regions = problem.domain.regions
+    if region is not None:
+        error = problem.domain.region_error(region)
+        if error is not None:
+            raise ValueError(f"membrane contact: region: {error}")
+    codes = regions[region] if region is not None else tuple(sorted({c for v in regions.values() for c in v}))
+    return dx(tuple(int(c) for c in codes))
+
+
+class _NodalContact:
+    """What the membrane contacts share: owned nodes, their lumped areas, the force from a contact energy."""
+
+    def _setup(self, problem: MembraneProblem, energy: ufl.Form, dA: ufl.Measure) -> None:
+        self.problem, self.comm = problem, problem.domain.mesh.comm
+        V = problem.V
+        self.n_owned = V.dofmap.index_map.size_local
+        self.reference = V.tabulate_dof_coordinates()[:, :3]
+        v = ufl.TestFunction(V)
+        #: the reference area lumped to the owned nodes, over the contact's surface and over the whole membrane
+        self.lumped_area, self.membrane_lumped = (self._lumped(v[0] * measure)
+                                                  for measure in (dA, nodal_measure(problem)))
+        self.energy = energy
+        self._force = fem.form(ufl.derivative(energy, problem.u, v))
+        problem.add_energy(energy)
+        problem.contacts.append(self)
+
+    def _lumped(self, form: ufl.Form) -> np.ndarray:
+        vector = fem_petsc.assemble_vector(fem.form(form))
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        values = vector.array_r.reshape(-1, 3)[: self.n_owned, 0].copy()
+        vector.destroy()
+        return values
+
+    def positions(self) -> np.ndarray:
+        """x = X + u at the owned nodes (n, 3)."""
+        u = self.problem.u.x.array.reshape(-1, 3)[: self.n_owned]
+        return self.reference[: self.n_owned] + u
+
+    def force(self) -> np.ndarray:
+        """The contact force on the membrane, -dPi_c/du summed over all nodes (3,). Collective."""
+        R = fem_petsc.assemble_vector(self._force)
+        R.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        local = R.array_r.reshape(-1, 3).sum(axis=0)
+        R.destroy()
+        return -np.asarray(self.comm.allreduce(local, op=MPI.SUM))
+
+    def touching(self) -> np.ndarray:
+        """A bool per owned node of the membrane: True where it touches (g < 0)."""
+        raise NotImplementedError
+
+    def contact_fraction(self) -> float:
+        """The share of the reference area (lumped to the nodes) whose nodes touch, g < 0. Collective."""
+        return _area_fraction(self.comm, self.lumped_area, self.touching())
+
+
+def _area_fraction(comm: MPI.Comm, lumped: np.ndarray, mask: np.ndarray) -> float:
+    touching = comm.allreduce(float(lumped[mask].sum()), op=MPI.SUM)
+    return touching / comm.allreduce(float(lumped.sum()), op=MPI.SUM)
+
+
+def contact_fraction(problem: MembraneProblem) -> float:
+    """The share of the membrane's reference area whose nodes touch any of its contacts (bones or other
+    membranes; each node counted once), 0 without contacts. Collective."""
+    if not problem.contacts:
+        return 0.0
+    mask = np.zeros(problem.contacts[0].n_owned, dtype=bool)
+    for contact in problem.contacts:
+        mask |= contact.touching()
+    return _area_fraction(problem.domain.mesh.comm, problem.contacts[0].membrane_lumped, mask)
+
+
+class ObstacleContact(_NodalContact):
+    """Penalty contact of the whole membrane with a rigid ``obstacle`` (module docstring); ``inside``: the free
+    side is the obstacle's interior (g = -d). Adds Pi_c to the problem's energy on construction."""
+
+    def __init__(self, problem: MembraneProblem, obstacle: Obstacle, k: float, inside: bool = False,
+                 name: str | None = None, augmented: bool = False) -> None:
+        if not (isinstance(k, (int, float)) and np.isfinite(k) and k > 0):
+            raise ValueError(f"membrane contact: k must be a finite number > 0, got {k!r}")
+        self.obstacle, self.sign = obstacle, -1.0 if inside else 1.0
+        self.name = name or type(obstacle).__name__.lower()
+        self.augmented = bool(augmented)
+        msh = problem.domain.mesh
+        self.k = fem.Constant(msh, PETSc.ScalarType(k))
+        x = ufl.SpatialCoordinate(msh) + problem.u
+        self.gap = self.sign * obstacle.distance(x)
+        # the augmented Lagrangian's multiplier (the contact pressure per reference area) at the nodes: a scalar
+        # P1 Function, its dof of each node from the collapsed first component of the displacement space
+        Q, to_v = problem.V.sub(0).collapse()
+        self.multiplier = fem.Function(Q, name="contact_pressure")
+        q_of_block = np.full(len(problem.u.x.array) // 3, -1, dtype=np.int64)
+        q_of_block[np.asarray(to_v, dtype=np.int64) // 3] = np.arange(len(to_v))
+        self._q = q_of_block
+        psi = augmented_lagrangian_energy(self.gap, self.multiplier, self.k) if self.augmented \
+            else penalty_energy(self.gap, self.k)
+        self._setup(problem, psi * nodal_measure(problem), nodal_measure(problem))
+        self._q = self._q[: self.n_owned]
+
+    def nodal_gaps(self) -> np.ndarray:
+        """g at the owned nodes."""
+        return self.sign * np.asarray(self.obstacle.distance(self.positions()), dtype=np.float64)
+
+    def nodal_pressures(self) -> np.ndarray:
+        """The contact pressure per reference area at the owned nodes, max(lambda - k g, 0) (lambda = 0 for the
+        plain penalty)."""
+        lam = self.multiplier.x.array[self._q] if self.augmented else 0.0
+        return np.asarray(contact_pressure(self.nodal_gaps(), float(self.k.value), lam))
+
+    def touching(self) -> np.ndarray:
+        return self.nodal_pressures() > 0.0
+
+    def uzawa_residual(self) -> float:
+        """max over the nodes of |min(g, lambda/k)|: 0 at the exact contact solution (g >= 0, lambda >= 0,
+        lambda g = 0). Collective."""
+        lam = self.multiplier.x.array[self._q]
+        local = np.abs(np.minimum(self.nodal_gaps(), lam / float(self.k.value)))
+        return float(self.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX))
+
+    def update_multiplier(self) -> None:
+        """Uzawa: lambda_i <- max(lambda_i - k g_i, 0) at the nodes. Collective (ghosts updated)."""
+        self.multiplier.x.array[self._q] = self.nodal_pressures()
+        self.multiplier.x.scatter_forward()
+
+    def report(self) -> dict[str, Any]:
+        """max_penetration = max(0, -min g), force (on the membrane), contact_fraction, active_points (nodes
+        with a contact pressure); the same on every rank. Collective."""
+        g = self.nodal_gaps()
+        low = self.comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
+        return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
+                "contact_fraction": self.contact_fraction(),
+                "active_points": self.comm.allreduce(int(np.sum(self.touching())), op=MPI.SUM)}
+
+
+class MembranePairContact(_NodalContact):
+    """Penalty contact of the ``slave`` region of the membrane mesh against its ``master`` region (two membranes
+    of one surface mesh, meshes.membrane.combine_surfaces), after model.problem.body_contact.BodyContact:
+
+        g = n . (x_s - x*),   x* = sum_j b_j x_j the closest point of the deformed master surface to the slave
+        node x_s (a triangle T, barycentric b_j, model.problem.body_contact.closest_points_on_triangles), n T's
+        current unit normal, oriented as the master's rest normal (problem.normal): the slave stays on the side
+        the master's normal points to;
+        Pi_c = int_slave (k/2) min(g, 0)^2 dA (nodal rule),
+
+    with z = Pi u (the master displacement at x*, Pi the barycentric interpolation) a Function of its own, so UFL
+    derives every term and the Newton solver (model.solvers.membrane) adds R += Pi^T dPi_c/dz and
+    K += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi. The pairing (T, b) and n are found again before every residual and
+    Jacobian (``update``) and held fixed in the derivatives (what is lagged: the normal's rotation and the slip
+    of x*). The master triangles are gathered on every rank (each rank pairs its own slave nodes)."""
+
+    def __init__(self, problem: MembraneProblem, slave: str, master: str, k: float, neighbours: int = 8,
+                 name: str | None = None) -> None:
+        if not (isinstance(k, (int, float)) and np.isfinite(k) and k > 0):
+            raise ValueError(f"membrane contact: k must be a finite number > 0, got {k!r}")
+        domain = problem.domain
+        for region in (slave, master):
+            error = domain.region_error(region)
+            if error is not None or region == "all":
+                raise ValueError(f"membrane contact: region: {error or 'a named membrane region, not all'}")
+        if slave == master:
+            raise ValueError("membrane contact: slave and master must be two regions")
+        self.slave, self.master, self.neighbours = slave, master, int(neighbours)
+        self.name = name or f"{slave}-{master}"
+        msh, V = domain.mesh, problem.V
+        self.V, self.comm = V, msh.comm
+        owned = V.dofmap.index_map.size_local
+        blocks = np.unique(compat.cell_dofs(V.dofmap)[domain.region_cells(slave), :3]).astype(np.int32)
+        self.slave_blocks = blocks[blocks < owned]
+        self.reference = V.tabulate_dof_coordinates()[:, :3]
+        self._master_setup(problem)
+        self.X_star, self.contact_normal, self.z = (fem.Function(V, name=n) for n in ("X_star", "normal", "z"))
+        self.k = fem.Constant(msh, PETSc.ScalarType(k))
+        X = ufl.SpatialCoordinate(msh)
+        self.gap = ufl.dot(self.contact_normal, X + problem.u - self.X_star - self.z)
+        dA = nodal_measure(problem, slave)
+        energy = penalty_energy(self.gap, self.k) * dA
+        v, w = ufl.TestFunction(V), ufl.TrialFunction(V)
+        dz = ufl.derivative(energy, self.z, v)
+        self._ufl = {"Rz": dz, "Kuz": ufl.derivative(ufl.derivative(energy, problem.u, v), self.z, w),
+                     "Kzz": ufl.derivative(dz, self.z, w)}
+        self._compiled: dict[str, Any] = {}
+        self._stamp: np.ndarray | None = None
+        self.Pi: PETSc.Mat | None = None
+        #: (triangle, barycentric, normal) per slave node of the last pairing; ``frozen``: reuse one
+        self.pairing: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.frozen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._setup(problem, energy, dA)
+        self.slave_mask = np.zeros(self.n_owned, dtype=bool)
+        self.slave_mask[self.slave_blocks] = True
+
+    def _master_setup(self, problem: MembraneProblem) -> None:
+        """Owned master cells: their three block dofs, ordered so that (x1 - x0) x (x2 - x0) . N > 0 (N the rest
+        normal), and their global block indices."""
+        msh, V = problem.domain.mesh, self.V
+        cells = problem.domain.region_cells(self.master)
+        cells = cells[cells < msh.topology.index_map(2).size_local]
+        tri = compat.cell_dofs(V.dofmap)[cells, :3].astype(np.int64)
+        W = problem.normal.function_space
+        N = problem.normal.x.array.reshape(-1, 3)[compat.cell_dofs(W.dofmap)[cells, 0]]
+        x = self.reference
+        normal = np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
+        flip = np.einsum("ij,ij->i", normal, N) < 0
+        tri[flip] = tri[flip][:, [0, 2, 1]]
+        self.master_local = tri
+        self.master_global = np.asarray(V.dofmap.index_map.local_to_global(tri.ravel().astype(np.int32)),
+                                        dtype=np.int64).reshape(-1, 3)
+        if self.comm.allreduce(len(cells), op=MPI.SUM) == 0:
+            raise ValueError(f"membrane contact: region {self.master!r} has no cell")
+
+    def update(self) -> None:
+        """Pair every owned slave node with its closest master point at the current u; set X*, n, z and Pi.
+        Collective."""
+        from scipy.spatial import cKDTree
+
+        from model.problem.body_contact import closest_points_on_triangles
+
+        current = self.problem.u.x.array
+        changed = self._stamp is None or not np.array_equal(self._stamp, current)
+        if not self.comm.allreduce(changed, op=MPI.LOR):
+            return
+        u = current.reshape(-1, 3)
+        X_loc = self.reference[self.master_local]
+        parts = self.comm.allgather((X_loc, X_loc + u[self.master_local], self.master_global))
+        X_tri, x_tri, g_tri = (np.concatenate([p[i] for p in parts]) for i in range(3))
+        slave = self.slave_blocks
+        xs = self.reference[slave] + u[slave]
+        n, k = len(slave), min(self.neighbours, len(x_tri))
+        best_d, best_t, best_b = np.full(n, np.inf), np.zeros(n, dtype=np.int64), np.zeros((n, 3))
+        if n:
+            near = np.asarray(cKDTree(x_tri.mean(axis=1)).query(xs, k=k)[1]).reshape(n, k)
+            for j in range(k):
+                closest, bary = closest_points_on_triangles(xs, x_tri[near[:, j]])
+                d = np.linalg.norm(xs - closest, axis=1)
+                better = d < best_d - 1e-14 * np.maximum(d, 1.0)
+                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
+        # the master's vertex normals (area-weighted mean of its triangles' normals), interpolated at x*: a
+        # normal continuous across the master's edges, so the gap does not jump when x* changes triangle
+        face = np.cross(x_tri[:, 1] - x_tri[:, 0], x_tri[:, 2] - x_tri[:, 0])
+        nodes, index = np.unique(g_tri.ravel(), return_inverse=True)
+        vertex = np.zeros((len(nodes), 3))
+        for j in range(3):
+            np.add.at(vertex, index.reshape(-1, 3)[:, j], face)
+        vertex /= np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-300)
+        normal = np.einsum("ij,ijk->ik", best_b, vertex[index.reshape(-1, 3)[best_t]])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        if self.frozen is not None:  # the pairing of the last update, z from the current u (derivative checks)
+            best_t, best_b, normal = self.frozen
+        self.pairing = (best_t, best_b, normal)
+        values = (np.einsum("ij,ijk->ik", best_b, X_tri[best_t]), normal,
+                  np.einsum("ij,ijk->ik", best_b, x_tri[best_t] - X_tri[best_t]))
+        for function, value in zip((self.X_star, self.contact_normal, self.z), values, strict=True):
+            array = function.x.array.reshape(-1, 3)
+            array[:] = 0.0
+            array[slave] = value
+            function.x.scatter_forward()
+        self._build_interpolation(best_b, g_tri[best_t])
+        self._stamp = current.copy()
+
+    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
+        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices (built
+        as CSR: the owned rows, three entries in each slave row)."""
+        imap = self.V.dofmap.index_map
+        n_local, n_global = imap.size_local * 3, imap.size_global * 3
+        if self.Pi is not None:
+            self.Pi.destroy()
+        counts = np.zeros(n_local, dtype=np.int64)
+        rows = (3 * self.slave_blocks[:, None] + np.arange(3)).ravel()  # local rows, node-major
+        counts[rows] = 3
+        order = np.argsort(rows)
+        cols = (3 * columns[:, None, :] + np.arange(3)[None, :, None]).reshape(-1, 3)[order]
+        vals = np.repeat(bary, 3, axis=0)[order]
+        indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
+        self.Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)),
+                                        csr=(indptr, cols.ravel().astype(PETSc.IntType), vals.ravel()),
+                                        comm=self.comm)
+
+    def _form(self, key: str) -> Any:
+        if key not in self._compiled:
+            self._compiled[key] = fem.form(self._ufl[key])
+        return self._compiled[key]
+
+    def _master_force(self) -> PETSc.Vec:
+        """Pi^T dPi_c/dz (owned entries of a new vector). Collective."""
+        self.update()
+        Rz = fem_petsc.assemble_vector(self._form("Rz"))
+        Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = self.Pi.createVecRight()
+        self.Pi.multTranspose(Rz, out)
+        Rz.destroy()
+        return out
+
+    def add_residual(self, b: PETSc.Vec) -> None:
+        """b += Pi^T dPi_c/dz (b assembled and reverse-scattered). Collective."""
+        out = self._master_force()
+        with b.localForm() as local:
+            local.array[: len(out.array_r)] += out.array_r
+        out.destroy()
+
+    def add_jacobian(self, A: PETSc.Mat, bcs: list) -> None:
+        """A += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi, the rows and columns of the Dirichlet dofs zeroed. Collective;
+        A is assembled again by the caller."""
+        self.update()
+        Kuz = fem_petsc.assemble_matrix(self._form("Kuz"))
+        Kuz.assemble()
+        Kzz = fem_petsc.assemble_matrix(self._form("Kzz"))
+        Kzz.assemble()
+        C1 = Kuz.matMult(self.Pi)
+        C = C1.copy()
+        C.axpy(1.0, C1.transpose(), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        C.axpy(1.0, Kzz.PtAP(self.Pi), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        imap = self.V.dofmap.index_map
+        owned = imap.size_local * 3
+        dofs = [np.asarray(bc.dof_indices()[0], dtype=np.int64) for bc in bcs]
+        local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
+        local = local[local < owned]
+        glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
+        C.zeroRowsColumns(glob.astype(PETSc.IntType), diag=0.0)
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        start, end = C.getOwnershipRange()
+        for row in range(start, end):
+            cols, values = C.getRow(row)
+            if len(cols):
+                A.setValues(np.array([row], dtype=PETSc.IntType), cols, values, addv=PETSc.InsertMode.ADD_VALUES)
+        for m in (Kuz, Kzz, C1, C):
+            m.destroy()
+
+    def nodal_gaps(self) -> np.ndarray:
+        """g at the owned slave nodes (paired again if u changed). Collective."""
+        self.update()
+        u = self.problem.u.x.array.reshape(-1, 3)
+        s = self.slave_blocks
+        return np.einsum("ij,ij->i", self.contact_normal.x.array.reshape(-1, 3)[s],
+                         self.reference[s] + u[s] - self.X_star.x.array.reshape(-1, 3)[s]
+                         - self.z.x.array.reshape(-1, 3)[s])
+
+    def touching(self) -> np.ndarray:
+        mask = np.zeros(self.n_owned, dtype=bool)
+        mask[self.slave_blocks] = self.nodal_gaps() < 0.0
+        return mask
+
+    def report(self) -> dict[str, Any]:
+        """max_penetration (max(0, -min g)), force on the slave (-dPi_c/du at fixed z, summed), force on the
+        master (-Pi^T dPi_c/dz, summed), contact_fraction (of the slave region's area), active_points."""
+        g = self.nodal_gaps()
+        low = self.comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
+        out = self._master_force()
+        master = -np.asarray(self.comm.allreduce(out.array_r.reshape(-1, 3).sum(axis=0), op=MPI.SUM))
+        out.destroy()
+        lumped = self.lumped_area[self.slave_blocks]
+        return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
+                "master_force": [float(f) for f in master],
+                "contact_fraction": _area_fraction(self.comm, lumped, g < 0.0),
+                "active_points": self.comm.allreduce(int(np.sum(g < 0.0)), op=MPI.SUM)}
