@@ -178,27 +178,32 @@ def gap(obstacle: Obstacle, x: Points, rotation: Expr | np.ndarray | None = None
 
 # --- surface energies -----------------------------------------------------------------------------
 
-def penalty_energy(g: Expr, k: float | Expr) -> Expr:
-    """psi = (k/2) min(g, 0)^2, written as (k/2) [g if g <= 0 else 0]^2.
+def penalty_energy(g: Expr, k: float | Expr, touching: float = 0.0) -> Expr:
+    """psi = (k/2) min(g, 0)^2, written as (k/2) [g if g <= touching else 0]^2.
 
     Its derivative dpsi/dg = k min(g, 0) is continuous; the second derivative jumps from 0 to k at
     g = 0 and UFL differentiates the conditional branch-wise, so the tangent at g = 0 exactly is
     taken from the contact side (k): a body resting exactly on the obstacle (g = 0, e.g. at the
     start of a load step) keeps a nonsingular tangent. (ufl.min_value(g, 0) would give 0 there.)
+    ``touching`` >= 0 widens "exactly": a gap computed as a difference of equal coordinates is 0 only
+    to round-off (+2e-16 on some machines, 0 or -2e-16 on others), and 0 < g <= touching counts as
+    touching too (tangent k, energy (k/2) g^2 <= (k/2) touching^2, a force k g <= k touching); with
+    touching = 1e-12 x the body's size that is below the arithmetic's resolution of the total energy.
     """
-    return 0.5 * k * ufl.conditional(ufl.le(g, 0.0), g, 0.0) ** 2
+    return 0.5 * k * ufl.conditional(ufl.le(g, touching), g, 0.0) ** 2
 
 
-def augmented_lagrangian_energy(g: Expr, pressure: Expr, k: float | Expr) -> Expr:
+def augmented_lagrangian_energy(g: Expr, pressure: Expr, k: float | Expr, touching: float = 0.0) -> Expr:
     """psi = (k/2) min(g - lambda/k, 0)^2 - lambda^2/(2k), lambda >= 0 the multiplier (a pressure).
 
     Stationary in lambda for fixed g exactly where lambda = max(lambda - k g, 0), i.e. the
     complementarity conditions g >= 0, lambda >= 0, lambda g = 0 (Rockafellar's augmented
     Lagrangian of the inequality g >= 0; Uzawa iterates lambda <- max(lambda - k g, 0)).
-    The tangent at the kink (g = lambda/k) is taken from the contact side, as in penalty_energy.
+    The tangent at the kink (g = lambda/k) is taken from the contact side, as in penalty_energy
+    (``touching`` as there).
     """
     m = g - pressure / k
-    return 0.5 * k * ufl.conditional(ufl.le(m, 0.0), m, 0.0) ** 2 - pressure**2 / (2.0 * k)
+    return 0.5 * k * ufl.conditional(ufl.le(m, touching), m, 0.0) ** 2 - pressure**2 / (2.0 * k)
 
 
 def contact_pressure(g: Scalar, k: float | Expr, pressure: Scalar = 0.0) -> Scalar:

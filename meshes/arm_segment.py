@@ -21,7 +21,7 @@ import time
 
 import gmsh
 
-from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, gmsh_session
+from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, generate_tetrahedra, gmsh_session
 from meshes._validate import ParameterError, positive_float
 from meshes.data import MeshData, from_gmsh_model
 from meshes.fusiform import add_muscle
@@ -216,7 +216,7 @@ def arm_segment(
     start = time.perf_counter()
     with gmsh_session(arm_segment_options(lc, rt, turns), name=_GENERATOR):
         build_arm_segment_model(total, r, rm, rt, lt, gap)
-        gmsh.model.mesh.generate(3)
+        generate_tetrahedra("arm_segment")
         mesh = from_gmsh_model(gmsh.model)
     logger.info(
         "arm_segment(length=%g, radius=%g, muscle_radius=%g, tendon_radius=%g, tendon_length=%g, spacing=%g, "

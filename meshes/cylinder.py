@@ -17,7 +17,7 @@ import time
 
 import gmsh
 
-from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, gmsh_session
+from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, generate_tetrahedra, gmsh_session
 from meshes._validate import positive_float
 from meshes.data import MeshData, from_gmsh_model
 
@@ -96,7 +96,7 @@ def cylinder(radius: float = 0.5, length: float = 2.0, size: float = 0.25) -> Me
     start = time.perf_counter()
     with gmsh_session(cylinder_options(lc), name="cylinder"):
         build_cylinder_model(r, h, layers=max(1, round(h / lc)))
-        gmsh.model.mesh.generate(3)
+        generate_tetrahedra("cylinder")
         mesh = from_gmsh_model(gmsh.model)
     logger.info(
         "cylinder(radius=%g, length=%g, size=%g): %d tets, %d points in %.2f s",

@@ -23,7 +23,7 @@ import time
 import gmsh
 import numpy as np
 
-from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, gmsh_session
+from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, generate_tetrahedra, gmsh_session
 from meshes._validate import ParameterError, positive_float
 from meshes.data import MeshData, from_gmsh_model
 
@@ -180,7 +180,7 @@ def fusiform(
     start = time.perf_counter()
     with gmsh_session(fusiform_options(lc, rt), name="fusiform"):
         build_fusiform_model(belly_length, rb, rt, tendon)
-        gmsh.model.mesh.generate(3)
+        generate_tetrahedra("fusiform")
         mesh = from_gmsh_model(gmsh.model)
     logger.info(
         "fusiform(length=%g, belly_radius=%g, tendon_radius=%g, tendon_length=%g, size=%g): "

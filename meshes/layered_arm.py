@@ -30,7 +30,7 @@ import time
 import gmsh
 import numpy as np
 
-from meshes._gmsh import CURVATURE_ELEMENTS, gmsh_session
+from meshes._gmsh import CURVATURE_ELEMENTS, generate_tetrahedra, gmsh_session
 from meshes._validate import positive_float
 from meshes.arm_segment import _check, arm_segment_options, build_arm_segment_model, check_turn_elements
 from meshes.combine import combine
@@ -175,7 +175,7 @@ def layered_arm_meshes(
     start = time.perf_counter()
     with gmsh_session(arm_segment_options(lc, rt, turns), name=_GENERATOR):
         build_arm_segment_model(total, r, rm, rt, lt, gap)
-        gmsh.model.mesh.generate(3)
+        generate_tetrahedra("layered_arm")
         conforming = from_gmsh_model(gmsh.model)
     mesh = combine(split_bodies(conforming))
     logger.info("layered_arm(length=%g, radius=%g, muscle_radius=%g, tendon_radius=%g, tendon_length=%g, "

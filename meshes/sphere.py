@@ -16,7 +16,7 @@ import time
 import gmsh
 import numpy as np
 
-from meshes._gmsh import gmsh_session
+from meshes._gmsh import generate_tetrahedra, gmsh_session
 from meshes._validate import ParameterError, positive_float
 from meshes.data import MeshData, from_gmsh_model
 
@@ -103,7 +103,7 @@ def sphere(radius: float = 1.0, size: float = 0.25, octant: bool = False, pole_s
             distance = f"Sqrt(x*x + y*y + (z + {R!r})*(z + {R!r}))"
             field.setString(f, "F", f"Min({h!r}, {hp!r} + {rate!r} * Max({distance} - {rp!r}, 0))")
             field.setAsBackgroundMesh(f)
-        gmsh.model.mesh.generate(3)
+        generate_tetrahedra("sphere")
         mesh = from_gmsh_model(gmsh.model)
     logger.info("sphere(radius=%g, size=%g, octant=%s, pole_size=%s): %d tets, %d points in %.2f s", R, h, octant,
                 pole_size, mesh.num_cells, mesh.num_points, time.perf_counter() - start)

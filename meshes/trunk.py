@@ -20,7 +20,7 @@ import time
 import gmsh
 import numpy as np
 
-from meshes._gmsh import gmsh_session
+from meshes._gmsh import generate_tetrahedra, gmsh_session
 from meshes._validate import ParameterError, positive_float
 from meshes.data import MeshData, from_gmsh_model
 
@@ -139,7 +139,7 @@ def trunk(height: float = 10.0, base_radius: float = 0.5, top_radius: float = 0.
     start = time.perf_counter()
     with gmsh_session(trunk_options(lc), name="trunk"):
         build_trunk_model(h, rb, rt, float(bend))
-        gmsh.model.mesh.generate(3)
+        generate_tetrahedra("trunk")
         mesh = from_gmsh_model(gmsh.model)
     logger.info("trunk(height=%g, base_radius=%g, top_radius=%g, bend=%g, size=%g): %d tets, %d points in %.2f s",
                 h, rb, rt, bend, lc, mesh.num_cells, mesh.num_points, time.perf_counter() - start)

@@ -16,6 +16,7 @@ import gmsh
 import numpy as np
 import pytest
 
+import meshes._gmsh as gmsh_helpers
 from meshes import (
     GENERATORS,
     MeshData,
@@ -32,7 +33,8 @@ from meshes import (
 from meshes._gmsh import gmsh_is_initialized, gmsh_session
 from meshes.cook import COOK_AREA
 from meshes.cylinder import build_cylinder_model, cylinder_options
-from meshes.topology import boundary_facets, facet_keys, signed_volumes, tet_faces
+from meshes.fusiform import build_fusiform_model, fusiform_options
+from meshes.topology import boundary_facets, facet_keys, radius_ratio, signed_volumes, tet_faces
 
 # Small instances of every generator, used by the generic checks.
 SMALL = {
@@ -308,6 +310,30 @@ def test_fusiform_refines_with_size() -> None:
     # the tendons keep their volume (their surface is refined too)
     assert fine.volume("tendon_origin") == pytest.approx(math.pi * rt**2 * lt, rel=0.02)
 
+
+
+def _fusiform_quality(seed: int, threshold: float, monkeypatch: pytest.MonkeyPatch) -> tuple[float, float, int]:
+    """(returned quality, the kept mesh's measured quality, Mesh.RandomSeed afterwards) of a coarse muscle
+    meshed by generate_tetrahedra with the sliver threshold ``threshold``."""
+    monkeypatch.setattr(gmsh_helpers, "SLIVER_RADIUS_RATIO", threshold)
+    with gmsh_session({**fusiform_options(0.008, 0.005), "Mesh.RandomSeed": seed}, name="seeds"):
+        build_fusiform_model(0.06, 0.012, 0.005, 0.01)
+        returned = gmsh_helpers.generate_tetrahedra("fusiform")
+        data = from_gmsh_model(gmsh.model)
+        kept = float(radius_ratio(data.points[data.cells]).min())
+        return returned, kept, int(gmsh.option.getNumber("Mesh.RandomSeed"))
+
+
+def test_generate_tetrahedra_meshes_again_while_a_sliver_remains(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without a sliver the first seed's mesh is kept; while one remains, seeds 1..4 are tried and the best kept."""
+    alone = [_fusiform_quality(seed, 0.0, monkeypatch) for seed in (1, 2, 3, 4)]  # threshold 0: one attempt
+    assert len({q for q, _, _ in alone}) > 1  # the seed changes the mesh
+    for (returned, kept, seed), start in zip(alone, (1, 2, 3, 4), strict=True):
+        assert returned == pytest.approx(kept, rel=1e-12) and seed == start
+    returned, kept, seed = _fusiform_quality(1, 1.0, monkeypatch)  # every mesh "has a sliver": all seeds tried
+    assert seed == 1  # the option is restored
+    assert returned == pytest.approx(kept, rel=1e-12)
+    assert kept == pytest.approx(max(q for q, _, _ in alone), rel=1e-12)
 
 
 def test_msh_round_trip_from_gmsh(workdir: Path) -> None:

@@ -58,6 +58,8 @@ from model.problem.elasticity import ElasticityProblem
 log = logging.getLogger(__name__)
 
 KINDS = ("contact", "sliding")
+#: gaps up to this x the body's size count as touching in the tangent (forms.obstacles.penalty_energy)
+TOUCHING = 1e-12
 
 
 def closest_points_on_triangles(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,12 +164,15 @@ class BodyContact:
         from model.problem.bones import body_size
 
         self.size = body_size(problem)
+        # surfaces that coincide at rest have gaps of +-2e-16 (round-off, machine dependent): count them touching,
+        # so that the first tangent holds them (else Newton's first step lets the bodies pass through each other)
+        touching = TOUCHING * self.size
         if kind == "sliding":
             psi = sliding_energy(self.gap, self.k)
         elif augmented:
-            psi = augmented_lagrangian_energy(self.gap, self.multiplier, self.k)
+            psi = augmented_lagrangian_energy(self.gap, self.multiplier, self.k, touching)
         else:
-            psi = penalty_energy(self.gap, self.k)
+            psi = penalty_energy(self.gap, self.k, touching)
         energy = psi * ds
         v, w = ufl.TestFunction(V), ufl.TrialFunction(V)
         dz = ufl.derivative(energy, self.z, v)
