@@ -1,4 +1,5 @@
-"""Command line: ``python -m model run CONFIG [--out DIR] [--set KEY=VALUE ...] [--restart DIR]``,
+"""Command line: ``python -m model run CONFIG [--out DIR] [--set KEY=VALUE ...] [--restart DIR]`` (a CONFIG with a
+[membrane] table is a membrane run: model.config.membrane, model.experiments.membrane_run),
 ``python -m model verify emit|check|seeds|element``, ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR``
 (model.studies.commands), ``python -m model converge CONFIG --refine KEY=v1,v2,v3 --qoi ...``
 (model.studies.convergence_cli) and ``python -m model schema [--out FILE] [--markdown FILE]``.
@@ -66,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
                                     "unless --markdown is given)")
     schema_parser.add_argument("--markdown", type=Path, default=None,
                                help="write the Markdown reference of every key here (docs/config.md)")
+    schema_parser.add_argument("--membrane-out", type=Path, default=None,
+                               help="write the JSON Schema of a membrane run's file here (docs/membrane.schema.json)")
     args = parser.parse_args(argv)
     if args.command == "schema":
         return _schema(args)
@@ -78,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
         from model.studies.commands import main as sweep_main
 
         return sweep_main(args)
-    from model.config import load
+    from model.config import load, read
+    from model.config.membrane import is_membrane
     from model.errors import ConfigError, SolveFailed
     from model.pipeline import Interrupted, run
 
@@ -89,7 +93,10 @@ def main(argv: list[str] | None = None) -> int:
             if args.restart is not None and args.out is not None and args.out.resolve() != args.restart.resolve():
                 raise ConfigError(f"--restart {args.restart} and --out {args.out}: a restart writes into the folder "
                                   "it continues; give one of them")
-            config = load(args.config, parse_assignments(args.overrides))
+            overrides = parse_assignments(args.overrides)
+            if is_membrane(read(args.config)):  # a [membrane] table: a membrane run (model.config.membrane)
+                return _membrane(args, overrides)
+            config = load(args.config, overrides)
             if args.restart is not None:
                 summary = run(config, args.restart, restart=True)
             else:
@@ -110,15 +117,43 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _membrane(args: argparse.Namespace, overrides: dict) -> int:
+    """``run`` of a membrane document (model.config.membrane; model.experiments.membrane_run): exit codes as run."""
+    from model.config.membrane import load_membrane
+    from model.errors import ConfigError, SolveFailed
+    from model.experiments.membrane_run import run_membrane
+
+    try:
+        if args.restart is not None:
+            raise ConfigError("--restart: a membrane run has no restart (run it again)")
+        summary = run_membrane(load_membrane(args.config, overrides), args.out)
+    except ConfigError as err:
+        _error(str(err))
+        return 2
+    except SolveFailed as err:
+        _error(str(err))
+        return 1
+    if MPI.COMM_WORLD.rank == 0:
+        last = summary["steps"][-1]
+        print(f"done: membrane, {len(summary['steps'])} pressure steps, {summary['surface']['triangles']} "
+              f"triangles, {summary['wall_time_s']:.1f} s; p {last['pressure']:.6g}, V {last['volume']:.6g}, "
+              f"contact fraction {last['contact_fraction']:.4g}")
+    return 0
+
+
 def _schema(args: argparse.Namespace) -> int:
     from model.config.reference import render_markdown, schema_text
 
     if args.out is not None:
         args.out.write_text(schema_text())
-    elif args.markdown is None:
+    elif args.markdown is None and args.membrane_out is None:
         sys.stdout.write(schema_text())
     if args.markdown is not None:
         args.markdown.write_text(render_markdown())
+    if args.membrane_out is not None:
+        from model.config.reference import membrane_schema_text
+
+        args.membrane_out.write_text(membrane_schema_text())
     return 0
 
 

@@ -16,6 +16,16 @@ from mpi4py import MPI
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 
+
+def _is_membrane_run(path: Path) -> bool:
+    return "membrane" in tomllib.loads(path.read_text())
+
+
+#: examples/*.toml that are solid runs (model.config.RunConfig); MEMBRANE_EXAMPLES: those with a [membrane]
+#: table, membrane runs (model.config.membrane.MembraneRunConfig, docs/membrane.schema.json)
+RUN_EXAMPLES = [p for p in sorted(EXAMPLES.glob("*.toml")) if not _is_membrane_run(p)]
+MEMBRANE_EXAMPLES = [p for p in sorted(EXAMPLES.glob("*.toml")) if _is_membrane_run(p)]
+
 #: for tests that start processes of their own (CLI, mpirun): only in the serial run
 serial_only = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="starts its own processes; serial run only")
 

@@ -1,0 +1,186 @@
+"""A membrane run from its configuration (model.config.membrane): ``python -m model run FILE`` with [membrane].
+
+    summary = run_membrane(load_membrane("examples/membrane_balloon.toml"), Path("results/balloon"))
+
+1. the surface from its generator (meshes.membrane.sphere_octant / disc_surface), distributed
+   (model.domain.distribute.build_domain); normals outward (octant) or +z (disc);
+2. model.problem.membrane.MembraneProblem with the law (forms.membrane.membrane_law) and the Dirichlet border,
+   one model.problem.membrane_contact.ObstacleContact per [[obstacle]];
+3. the pressure path: model.solvers.membrane.inflate (a ramp or a list) or inflate_to_volume (growth by dp to a
+   target volume or contact fraction); the disc starts from a small paraboloid (``bump``);
+4. summary.json: per step the pressure, the enclosed volume V, the elastic energy, Newton's iterations, the
+   contact fraction, the largest displacement along the normal axis (disc: the centre deflection) and, for the
+   sphere octant, the stretch lambda = (V/V0)^(1/3) with the balloon's closed-form pressure
+   p(lambda) = w'(lambda) / (R lambda^2) (model.problem.membrane.balloon_pressure); for an StVK disc Hencky's
+   centre deflection w0 = c(nu) a (p a / (E h))^(1/3) (model.problem.membrane.hencky; small rotations); at the
+   end each obstacle's report (penetration, force, contact fraction, active nodes);
+5. the deformed surface per step: an XDMF time series of u (surface.xdmf) and VTU files (surface_NNNN.vtu).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+
+from forms.membrane import MembraneLaw, membrane_law
+from forms.obstacles import Plane, Sphere
+from meshes.membrane import SurfaceMeshData, disc_surface, sphere_octant
+from model.config.membrane import MembraneRunConfig
+from model.domain.distribute import build_domain
+from model.errors import SolveFailed
+from model.experiments.membrane import deformed_points
+from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_json_atomic
+from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, hencky, radial_orientation
+from model.problem.membrane_contact import ObstacleContact
+from model.solvers.membrane import InflationStep, inflate, inflate_to_volume
+
+log = logging.getLogger(__name__)
+
+__all__ = ["run_membrane"]
+
+
+def _surface(config: MembraneRunConfig) -> SurfaceMeshData:
+    m = config.membrane
+    return sphere_octant(m.radius, m.size) if m.surface == "sphere_octant" else disc_surface(m.radius, m.size)
+
+
+def _obstacle_name(spec: Any, index: int) -> str:
+    return spec.name or f"{type(spec.obstacle).__name__.lower()}_{index}"
+
+
+def _obstacle_summary(spec: Any) -> dict[str, Any]:
+    o = spec.obstacle
+    shape = {"plane": ("point", "normal"), "sphere": ("centre", "radius")}.get(
+        "plane" if isinstance(o, Plane) else "sphere" if isinstance(o, Sphere) else "capsule", ("a", "b", "radius"))
+    return {"obstacle": type(o).__name__.lower(), **{k: getattr(o, k) for k in shape}, "penalty": spec.penalty,
+            "inside": spec.inside, "augmented": spec.augmented}
+
+
+class _Writer:
+    """The deformed surface per step: XDMF of u (collective) and VTU (rank 0, meshio)."""
+
+    def __init__(self, problem: MembraneProblem, data: SurfaceMeshData | None, num_points: int, out: Path,
+                 xdmf: bool, vtu: bool) -> None:
+        self.problem, self.data, self.num_points, self.out = problem, data, num_points, out
+        self.series = XdmfSeries(problem.domain.mesh, out, "surface") if xdmf else None
+        self.vtu = vtu
+        self.files: list[str] = ["surface.xdmf", "surface.h5"] if xdmf else []
+        self.count = 0
+
+    def write(self, pressure: float) -> None:
+        self.count += 1
+        if self.series is not None:
+            self.files.append(self.series.write([self.problem.u], pressure))
+        if self.vtu:
+            points = deformed_points(self.problem, self.num_points)
+            name = f"surface_{self.count:04d}.vtu"
+            if points is not None:
+                import meshio
+
+                u = points - self.data.points
+                meshio.Mesh(self.data.points, [("triangle", self.data.cells)], point_data={"u": u}).write(
+                    self.out / name)
+            self.files.append(name)
+
+
+def _step_record(step: InflationStep, problem: MembraneProblem, config: MembraneRunConfig, law: MembraneLaw,
+                 rest_volume: float) -> dict[str, Any]:
+    m = config.membrane
+    record: dict[str, Any] = {"pressure": step.pressure, "volume": step.volume, "energy": step.energy,
+                              "iterations": step.iterations, "contact_fraction": step.contact_fraction}
+    if m.surface == "sphere_octant":
+        stretch = (step.volume / rest_volume) ** (1.0 / 3.0)
+        record["stretch"] = stretch
+        record["balloon_pressure"] = float(balloon_pressure(law, m.radius, stretch))
+    else:
+        record["centre_deflection"] = problem.max_component(2)
+        if m.law == "stvk":
+            record["hencky_deflection"] = _hencky(m.nu).centre_deflection(m.radius, step.pressure, m.young,
+                                                                           m.thickness)
+    return record
+
+
+@cache
+def _hencky(nu: float) -> Any:
+    return hencky(nu)
+
+
+def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD
+                 ) -> dict[str, Any]:
+    """Run a membrane configuration into ``out`` (default output.dir) and return summary.json's content.
+    SolveFailed (after writing the summary, status "failed") when Newton gives up. Collective."""
+    start = time.perf_counter()
+    out = Path(out) if out is not None else config.output.dir
+    if comm.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+    comm.barrier()
+    remove_earlier_run(out, comm)
+    m, inflation = config.membrane, config.inflation
+    law = membrane_law(m.law, **m.law_parameters)
+    data = _surface(config) if comm.rank == 0 else None
+    num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
+    domain = build_domain(comm, data)
+    orientation = radial_orientation() if m.surface == "sphere_octant" else axis_orientation()
+    problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree)
+    rest_volume = problem.volume()
+    contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
+                                spec.augmented) for i, spec in enumerate(config.obstacles)]
+    if m.surface == "disc":
+        bump = m.bump * m.radius
+        problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0], bump * (1 - (x[0]**2 + x[1]**2) / m.radius**2)]))
+    units = config.units
+    summary: dict[str, Any] = {
+        "kind": "membrane", "config": config.document, "status": "running",
+        "surface": {"generator": m.surface, "radius": m.radius, "size": m.size,
+                    "triangles": domain.mesh.topology.index_map(2).size_global, "nodes": num_points,
+                    "reference_area": problem.reference_area(), "rest_volume": rest_volume,
+                    "fixed": {k: list(v) for k, v in m.border.items()}},
+        "law": {"name": law.name, **m.law_parameters},
+        "obstacles": [_obstacle_summary(spec) for spec in config.obstacles],
+        "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
+        "steps": [], "contacts": [], "wall_time_s": 0.0,
+    }
+    writer = _Writer(problem, data, num_points, out, config.output.xdmf, config.output.vtu)
+    error = None
+    try:
+        pressures = inflation.ramp
+        if pressures is not None:
+            steps = []
+            for p in pressures:  # one at a time: the surface is written after each equilibrium
+                steps += inflate(problem, [p], cutbacks=inflation.cutbacks)
+                summary["steps"].append(_step_record(steps[-1], problem, config, law, rest_volume))
+                writer.write(p)
+        else:
+            dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
+            steps = inflate_to_volume(problem, inflation.volume, dp, max_steps=inflation.max_steps,
+                                      cutbacks=inflation.cutbacks, contact_fraction=inflation.contact_fraction)
+            # the last step is the state left in the problem; the others are recorded as they were found
+            summary["steps"] = [_step_record(s, problem, config, law, rest_volume) for s in steps]
+            for record in summary["steps"][:-1]:
+                record.pop("centre_deflection", None)
+            writer.write(steps[-1].pressure)
+    except RuntimeError as err:
+        error = str(err)
+    summary["contacts"] = [c.report() for c in contacts]
+    summary["status"] = "failed" if error else "completed"
+    if error:
+        summary["error"] = error
+    summary["files"] = [*writer.files, SUMMARY]
+    summary["wall_time_s"] = time.perf_counter() - start
+    if comm.rank == 0:
+        write_json_atomic(out / SUMMARY, summary)
+    comm.barrier()
+    if error:
+        raise SolveFailed(error)
+    last = summary["steps"][-1]
+    log.info("membrane: %d pressure steps, last p = %.6g, V = %.6g, contact fraction %.4g, %.1f s",
+             len(summary["steps"]), last["pressure"], last["volume"], last["contact_fraction"],
+             summary["wall_time_s"])
+    return summary
+
