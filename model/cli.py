@@ -2,7 +2,7 @@
 [membrane] table is a membrane run: model.config.membrane, model.experiments.membrane_run),
 ``python -m model verify emit|check|seeds|element``, ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR``
 (model.studies.commands), ``python -m model converge CONFIG --refine KEY=v1,v2,v3 --qoi ...``
-(model.studies.convergence_cli) and ``python -m model schema [--out FILE] [--markdown FILE]``.
+(model.studies.convergence_cli) and ``python -m model schema [--out FILE] [--markdown FILE] [--membrane-out FILE]``.
 
 Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input, 130 / 143
 interrupted by SIGINT / SIGTERM (results kept, summary.json "interrupted"; continue with --restart DIR).

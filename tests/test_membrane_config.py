@@ -137,3 +137,16 @@ def test_schema_file_and_examples() -> None:
     bad = tomllib.loads(BALLOON.read_text())
     bad["membrane"]["thicknes"] = 0.1
     assert list(validator.iter_errors(bad))
+
+
+def test_a_failed_solve_is_recorded(shared_tmp: Path) -> None:
+    """A neo-Hookean balloon cannot hold p above its limit point, max p = (2 mu h/R)(7^(-1/6) - 7^(-7/6)) = 1.21e-2:
+    SolveFailed naming the pressure, summary.json written with status "failed"."""
+    from model.errors import SolveFailed
+
+    overrides = {"membrane": {"surface": "sphere_octant", "law": "neo_hookean", "mu": 1.0, "thickness": 0.01},
+                 "inflation": {"pressures": [2e-2], "cutbacks": 0}, "output": {"xdmf": False, "vtu": False}}
+    with pytest.raises(SolveFailed, match="pressure 0.02"):
+        _run(shared_tmp, overrides, "failed")
+    summary = json.loads((shared_tmp / "failed" / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["steps"] == [] and "pressure 0.02" in summary["error"]

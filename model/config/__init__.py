@@ -5,6 +5,8 @@ output, bone, contact, dynamics), shared types and error wording in ``base``, th
 ``document``; ``reference`` renders the JSON schema and docs/config.md from the models.
 ``load(path, overrides)`` reads a file, ``parse(raw, base)`` checks a parsed document (paths relative
 to ``base``). Every error is a ConfigError whose one-line message starts with the dotted key.
+A file with a top-level [membrane] table is a membrane run instead: ``membrane`` (MembraneRunConfig,
+``load_membrane``).
 """
 
 from model.config.body_force import BodyForceConfig
