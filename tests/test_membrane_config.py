@@ -150,3 +150,25 @@ def test_a_failed_solve_is_recorded(shared_tmp: Path) -> None:
         _run(shared_tmp, overrides, "failed")
     summary = json.loads((shared_tmp / "failed" / "summary.json").read_text())
     assert summary["status"] == "failed" and summary["steps"] == [] and "pressure 0.02" in summary["error"]
+
+
+def test_inflation_to_a_target_volume(shared_tmp: Path) -> None:
+    """target_volume = 0.8 (lambda = (0.8/V0)^(1/3) = 1.155): the last step at the volume to 1e-6, its pressure on
+    the closed form to 5e-3, reached by growing p by the default dp = 0.05 w'(1.1) / R."""
+    summary = _run(shared_tmp, {"inflation": {"target_volume": 0.8}}, "volume")
+    last, V0 = summary["steps"][-1], summary["surface"]["rest_volume"]
+    assert last["volume"] == pytest.approx(0.8, rel=1e-6)
+    lam = (0.8 / V0) ** (1.0 / 3.0)
+    assert abs(last["pressure"] / stvk_balloon_pressure(1.0, 0.3, 0.01, 1.0, np.array(lam)) - 1.0) < 5e-3
+    dp = 0.05 * 0.01 / 0.7 * (1.1**2 - 1.0) * 1.1
+    assert summary["steps"][0]["pressure"] == pytest.approx(dp, rel=1e-12)
+    assert all(s["volume"] < 0.8 for s in summary["steps"][:-1] if s["pressure"] < last["pressure"])
+
+
+def test_a_membrane_file_is_not_a_solid_run() -> None:
+    """model.config.load (sweep, converge, model.load_config) names the [membrane] table instead of listing it as
+    an unknown section."""
+    from model.config import load
+
+    with pytest.raises(ConfigError, match=r"^membrane: this file is a membrane run .*python -m model run FILE"):
+        load(BALLOON)

@@ -204,6 +204,9 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
     """Check a parsed TOML document and build the RunConfig (file paths relative to ``base``)."""
     from model.config.overrides import resolved
 
+    if isinstance(raw, dict) and "membrane" in raw:
+        raise ConfigError("membrane: this file is a membrane run (model.config.membrane), not a solid run: start it "
+                          "with python -m model run FILE (sweeps and convergence studies take solid runs only)")
     # the parameters first: the expressions of every section are checked with their names
     parameters = validate(Parameters, raw["parameters"], "parameters") if isinstance(raw, dict) and \
         "parameters" in raw else {}
