@@ -14,13 +14,15 @@
    p(lambda) = w'(lambda) / (R lambda^2) (model.problem.membrane.balloon_pressure); for an StVK disc Hencky's
    centre deflection w0 = c(nu) a (p a / (E h))^(1/3) (model.problem.membrane.hencky; small rotations); at the
    end each obstacle's report (penetration, force, contact fraction, active nodes);
-5. the deformed surface per step: an XDMF time series of u (surface.xdmf) and VTU files (surface_NNNN.vtu).
+5. the deformed surface per step of a ramp or list (the final state of a volume or fraction stop): an XDMF time
+   series of u (surface.xdmf) and VTU files (surface_NNNN.vtu).
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from dataclasses import asdict
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -29,7 +31,6 @@ import numpy as np
 from mpi4py import MPI
 
 from forms.membrane import MembraneLaw, membrane_law
-from forms.obstacles import Plane, Sphere
 from meshes.membrane import SurfaceMeshData, disc_surface, sphere_octant
 from model.config.membrane import MembraneRunConfig
 from model.domain.distribute import build_domain
@@ -55,11 +56,10 @@ def _obstacle_name(spec: Any, index: int) -> str:
 
 
 def _obstacle_summary(spec: Any) -> dict[str, Any]:
+    """The obstacle's shape (forms.obstacles dataclass fields) and contact settings, for summary.json."""
     o = spec.obstacle
-    shape = {"plane": ("point", "normal"), "sphere": ("centre", "radius")}.get(
-        "plane" if isinstance(o, Plane) else "sphere" if isinstance(o, Sphere) else "capsule", ("a", "b", "radius"))
-    return {"obstacle": type(o).__name__.lower(), **{k: getattr(o, k) for k in shape}, "penalty": spec.penalty,
-            "inside": spec.inside, "augmented": spec.augmented}
+    return {"obstacle": type(o).__name__.lower(), **asdict(o), "penalty": spec.penalty, "inside": spec.inside,
+            "augmented": spec.augmented}
 
 
 class _Writer:
