@@ -29,8 +29,7 @@
 # tetrahedra), the same materials and activations, two load steps. What changes when the muscles may slide:
 # the bulge of the skin, the skin's displacement, the forces between the layers, the slip.
 #
-# Run with plain Python (`python notebooks/layered_arm.py`); about a minute and a half (the last section runs
-# examples/layered_arm_touching.toml: muscles that touch).
+# Run with plain Python (`python notebooks/layered_arm.py`); about a minute.
 
 # %%
 import os
@@ -196,58 +195,3 @@ if plt is not None:
 # them (their fibres shorten towards the middle of the belly) and the skin bulges more; free to slide, the
 # muscles shorten under the fat (the slip is mostly axial, largest on the fully active muscle a, on either side
 # of its middle), and the skin's bulge is about 60 % of the glued one (docs/layers.md has the table).
-
-# %% [markdown]
-# ## Touching muscles
-#
-# With fat between them the muscles cannot press on each other. `examples/layered_arm_touching.toml` leaves none:
-# `layered_arm(touching = true)` overlaps the bellies (spacing 19 mm, radius 11 mm) and cuts each at the plane
-# x = 0, so the two muscles share a flat face (cut open like the fat's interfaces: gap 0 at rest). Both muscles
-# are fully active; `a_flat` is in penalty contact with `b_flat` (k = 1e11), the fat slides on the rest of each
-# muscle (`a_round`, `b_round`). About 20 s.
-
-# %%
-touching_run = model.run(ROOT / "examples" / "layered_arm_touching.toml", out=OUT / "touching", overrides=OVERRIDES)
-s = touching_run.summary
-steps = [step for step in s["steps"] if step["converged"]]
-print(f"touching: {s['cells']} cells, Newton iterations {[st['newton_iterations'] for st in steps]}, "
-      f"{s['wall_time_s']:.1f} s")
-for pair, report in steps[-1]["contact_pairs"].items():
-    print(f"{pair:24s} {report['kind']:8s} penetration {1e6 * report['max_penetration']:6.2f} um, gap "
-          f"{1e6 * report['max_gap']:6.2f} um, normal force {report['normal_force']:7.2f} N, force "
-          f"{np.round(report['force'], 3)} N, active points {report['active_points']}")
-print("sum of the clamps' reactions (N):", np.round(np.sum(list(steps[-1]["reactions"].values()), axis=0), 5))
-
-data = last_vtu(touching_run)
-tets, U = data.cells_dict["tetra"], data.point_data["u"]
-X, us = surface_cut(data.points, U, tets, Z_MID)
-skin = np.hypot(X[:, 0], X[:, 1]) > 0.025
-touching_curves = {"skin": ring(X[skin], us[skin], (0.0, 0.0))}
-centroids = data.points[tets].mean(axis=1)
-muscle = data.cell_data["activation"][0][:, 0] > 0.99
-for m, side in (("a", centroids[:, 0] < 0.0), ("b", centroids[:, 0] > 0.0)):
-    touching_curves[m] = ring(*surface_cut(data.points, U, tets[muscle & side], Z_MID), (-0.0095, 0.0)
-                              if m == "a" else (0.0095, 0.0))
-
-# %%
-if plt is not None:
-    fig, ax = plt.subplots(figsize=(7, 6))
-    colours = {"skin": "black", "a": "C3", "b": "C0"}
-    for part, (Xc, uc, _) in touching_curves.items():
-        closed = np.r_[np.arange(len(Xc)), 0]
-        ax.plot(1e3 * Xc[closed, 0], 1e3 * Xc[closed, 1], ":", lw=0.8, color=colours[part])
-        ax.plot(1e3 * (Xc[closed, 0] + MAGNIFY * uc[closed, 0]), 1e3 * (Xc[closed, 1] + MAGNIFY * uc[closed, 1]),
-                "-", lw=1.4, color=colours[part], label=part)
-    ax.set_aspect("equal")
-    ax.set_title(f"touching muscles, z = 6 cm: reference dotted, displacements x{MAGNIFY:.0f}")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(OUT / "touching.png", dpi=90)
-    print("wrote", OUT / "touching.png")
-
-# %% [markdown]
-# The muscles bulge into each other and stay pressed along the flat face (10.9 N, penetration 3.7 um: the
-# penalty's p/k), while the fat slides on their round surfaces; the clamps' reactions sum to zero (4e-4 N):
-# every force between the bodies has its reaction (docs/layers.md, "Touching muscles").
