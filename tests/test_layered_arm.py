@@ -106,9 +106,9 @@ def test_the_skin_bulges_less_than_when_glued(runs: tuple[ArmResult, ArmResult])
 # --- touching muscles (layered_arm's touching = true; examples/layered_arm_touching.toml) ---------------------------
 
 TOUCHING = {"size": 0.015, "turn_elements": 8, "spacing": 0.019}
-#: The touching run converges on gmsh 4.8's mesh (Debian 12: 11,293 tets); on gmsh 4.13's (Debian 13: 11,563 tets)
-#: the fat's sliding on b_round stalls (line search, at the node (20.5, 0, 60) mm, also without the muscles'
-#: contact) after 95-370 s of cutbacks: not yet robust (docs/layers.md, "Touching muscles").
+#: The touching run converges on Debian 12 (gmsh 4.8: 11,293 tets); on Debian 13 (gmsh 4.13, dolfinx 0.9) Newton
+#: stalls from the first step (line search; at the flat face's rim, then at a fat node on b_round) after 95-370 s
+#: of cutbacks: not yet robust, not diagnosed (docs/layers.md, "Touching muscles").
 converges_here = pytest.mark.skipif(gmsh.__version__ != "4.8.0",
                                     reason="the touching run stalls on this gmsh's mesh (docs/layers.md)")
 
