@@ -73,14 +73,24 @@ def build_arm_segment_model(
     tendon_radius: float,
     tendon_length: float,
     spacing: float,
+    touching: bool = False,
 ) -> None:
-    """Create the fragmented arm-segment geometry and its physical groups in the current gmsh model."""
+    """Create the fragmented arm-segment geometry and its physical groups in the current gmsh model.
+
+    ``touching``: the bellies overlap (``spacing < 2 muscle_radius``) and each is cut by the plane x = 0, so that
+    they share a flat face there (muscle a keeps x <= 0, muscle b x >= 0) and no fat lies between them."""
     occ = gmsh.model.occ
     fat = occ.addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, length, radius)
     solids: dict[str, list[int]] = {}
     for label, x0 in (("a", -0.5 * spacing), ("b", 0.5 * spacing)):
         belly, origin, insertion = add_muscle(length - 2.0 * tendon_length, muscle_radius, tendon_radius,
                                               tendon_length, x0)
+        if touching:  # keep the belly's half space x <= 0 (a) or x >= 0 (b)
+            half = occ.addBox(-radius if label == "a" else 0.0, -radius, 0.0, radius, 2.0 * radius, length)
+            cut, _ = occ.intersect([(3, belly)], [(3, half)])
+            if len(cut) != 1:
+                raise RuntimeError(f"{_GENERATOR}: cutting belly {label} at x = 0 gave {len(cut)} volumes, not 1")
+            belly = cut[0][1]
         solids[f"belly_{label}"] = [belly]
         solids[f"tendon_{label}"] = [origin, insertion]
     tools = [(3, tag) for name in ARM_SEGMENT_REGIONS[1:] for tag in solids[name]]
@@ -136,20 +146,28 @@ def check_turn_elements(generator: str, turn_elements: object) -> int:
     return turn_elements
 
 
-def _check(length: float, radius: float, rm: float, rt: float, lt: float, spacing: float) -> None:
-    """Raise :class:`ParameterError` unless the muscles fit, apart, inside the fat and the tendons are shorter."""
+def _check(length: float, radius: float, rm: float, rt: float, lt: float, spacing: float,
+           touching: bool = False, generator: str = _GENERATOR) -> None:
+    """Raise :class:`ParameterError` unless the muscles fit, apart (``touching``: overlapping bellies, tendons
+    apart), inside the fat and the tendons are shorter."""
     if rt >= rm:
-        raise ParameterError(f"{_GENERATOR}: tendon_radius must be < muscle_radius ({rm!r}), got {rt!r}")
+        raise ParameterError(f"{generator}: tendon_radius must be < muscle_radius ({rm!r}), got {rt!r}")
     if 2.0 * lt >= length:
-        raise ParameterError(f"{_GENERATOR}: tendon_length must be < length / 2 ({0.5 * length!r}), got {lt!r}")
-    if spacing <= 2.0 * rm:
+        raise ParameterError(f"{generator}: tendon_length must be < length / 2 ({0.5 * length!r}), got {lt!r}")
+    if touching:
+        if not 2.0 * rt < spacing < 2.0 * rm:
+            raise ParameterError(
+                f"{generator}: with touching = true spacing must be between 2 * tendon_radius ({2.0 * rt!r}) and "
+                f"2 * muscle_radius ({2.0 * rm!r}) so that the bellies overlap and the tendons do not, got {spacing!r}"
+            )
+    elif spacing <= 2.0 * rm:
         raise ParameterError(
-            f"{_GENERATOR}: spacing must be > 2 * muscle_radius ({2.0 * rm!r}) so that the muscles do not "
+            f"{generator}: spacing must be > 2 * muscle_radius ({2.0 * rm!r}) so that the muscles do not "
             f"overlap, got {spacing!r}"
         )
     if 0.5 * spacing + rm >= radius:
         raise ParameterError(
-            f"{_GENERATOR}: radius must be > spacing / 2 + muscle_radius ({0.5 * spacing + rm!r}) so that the "
+            f"{generator}: radius must be > spacing / 2 + muscle_radius ({0.5 * spacing + rm!r}) so that the "
             f"muscles lie inside the fat, got {radius!r}"
         )
 

@@ -31,13 +31,13 @@ import gmsh
 import numpy as np
 
 from meshes._gmsh import CURVATURE_ELEMENTS, generate_tetrahedra, gmsh_session
-from meshes._validate import positive_float
+from meshes._validate import ParameterError, positive_float
 from meshes.arm_segment import _check, arm_segment_options, build_arm_segment_model, check_turn_elements
 from meshes.combine import combine
 from meshes.data import MeshData, from_gmsh_model
 
 __all__ = ["LAYERED_ARM_BODIES", "LAYERED_ARM_FACES", "LAYERED_ARM_REGIONS", "layered_arm", "layered_arm_meshes",
-           "split_bodies"]
+           "TOUCHING_FACES", "split_bodies"]
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +46,9 @@ _GENERATOR = "layered_arm"
 LAYERED_ARM_BODIES = {"a": ("belly_a", "tendon_a"), "b": ("belly_b", "tendon_b"), "fat": ("fat",)}
 #: Region names of :func:`layered_arm`.
 LAYERED_ARM_REGIONS = ("a_belly", "a_tendon", "b_belly", "b_tendon", "fat")
+#: The extra boundary names of ``layered_arm(touching=True)``: each muscle's copy of the flat face the two share,
+#: and the rest of its lateral surface (the fat's cavity).
+TOUCHING_FACES = ("a_flat", "a_round", "b_flat", "b_round")
 #: Boundary names of :func:`layered_arm`.
 LAYERED_ARM_FACES = ("a_origin", "a_insertion", "a_lateral", "a_surface", "b_origin", "b_insertion", "b_lateral",
                      "b_surface", "fat_proximal", "fat_distal", "fat_skin", "fat_cavity_a", "fat_cavity_b",
@@ -80,7 +83,8 @@ def split_bodies(data: MeshData) -> dict[str, MeshData]:
     Each body keeps its cells and a copy of their nodes (renumbered); muscle ``m`` gets the regions ``belly`` and
     ``tendon`` and the boundaries ``origin``, ``insertion`` and ``lateral`` (its other boundary triangles); the fat
     gets ``proximal``, ``distal``, ``skin`` and ``cavity_a`` / ``cavity_b`` (its boundary triangles that are also
-    muscle a's / b's).
+    muscle a's / b's). Muscles that share a face (touching) also get ``flat`` (that face) and ``round`` (the rest of
+    ``lateral``: the fat's cavity).
     """
     tags = {name: data.region_names[name] for names in LAYERED_ARM_BODIES.values() for name in names}
     body_cells = {body: np.isin(data.cell_tags, [tags[r] for r in regions])
@@ -107,6 +111,11 @@ def split_bodies(data: MeshData) -> dict[str, MeshData]:
             ends = np.vstack([named(f"{body}_origin"), named(f"{body}_insertion")])
             faces = {"origin": named(f"{body}_origin"), "insertion": named(f"{body}_insertion"),
                      "lateral": boundary[body][~_member(boundary[body], ends)]}
+            other = boundary["b" if body == "a" else "a"]
+            flat = _member(faces["lateral"], other)
+            if flat.any():  # touching muscles (layered_arm's touching = true): their shared face, and the rest
+                faces["flat"] = faces["lateral"][flat]
+                faces["round"] = faces["lateral"][~flat]
             region_names = {"belly": 1, "tendon": 2}
             source = data.cell_tags[body_cells[body]]
             cell_tags = np.where(source == tags[regions[0]], 1, 2).astype(np.int32)
@@ -129,11 +138,17 @@ def layered_arm(
     spacing: float = 0.024,
     size: float = 0.005,
     turn_elements: int = CURVATURE_ELEMENTS,
+    touching: bool = False,
 ) -> MeshData:
     """The arm segment's geometry as three separate bodies, muscle a, muscle b and the fat (module docstring).
 
     Parameters are :func:`meshes.arm_segment.arm_segment`'s, with the same defaults and checks (``turn_elements``:
     elements per 2 pi radians on curved surfaces; fewer than the default for a coarse, fast mesh).
+    ``touching`` (default False): no fat between the muscles; the bellies overlap (``2 tendon_radius < spacing <
+    2 muscle_radius``) and are cut at the plane x = 0 into two bellies that share a flat, lens-shaped face there,
+    cut open like the muscle-fat interfaces (every node of it has a twin in the other muscle: gap 0 at rest); it is
+    part of ``a_lateral`` and ``b_lateral``, and named ``a_flat`` and ``b_flat``; ``a_round`` and ``b_round`` are
+    the rest of ``a_lateral`` and ``b_lateral`` (the fat's cavity: :data:`TOUCHING_FACES`).
 
     Returns
     -------
@@ -148,7 +163,7 @@ def layered_arm(
         As :func:`meshes.arm_segment.arm_segment`.
     """
     return layered_arm_meshes(length, radius, muscle_radius, tendon_radius, tendon_length, spacing, size,
-                              turn_elements)[1]
+                              turn_elements, touching)[1]
 
 
 def layered_arm_meshes(
@@ -160,6 +175,7 @@ def layered_arm_meshes(
     spacing: float = 0.024,
     size: float = 0.005,
     turn_elements: int = CURVATURE_ELEMENTS,
+    touching: bool = False,
 ) -> tuple[MeshData, MeshData]:
     """The conforming arm segment (:func:`meshes.arm_segment.arm_segment` with the same parameters: its very mesh)
     and the layered arm cut open from it (:func:`layered_arm`): the same nodes."""
@@ -171,15 +187,20 @@ def layered_arm_meshes(
     gap = positive_float(_GENERATOR, "spacing", spacing)
     lc = positive_float(_GENERATOR, "size", size)
     turns = check_turn_elements(_GENERATOR, turn_elements)
-    _check(total, r, rm, rt, lt, gap)
+    if not isinstance(touching, bool):
+        raise ParameterError(f"{_GENERATOR}: touching must be true or false, got {touching!r}")
+    if touching:
+        _check(total, r, rm, rt, lt, gap, touching=True, generator=_GENERATOR)
+    else:
+        _check(total, r, rm, rt, lt, gap)
     start = time.perf_counter()
     with gmsh_session(arm_segment_options(lc, rt, turns), name=_GENERATOR):
-        build_arm_segment_model(total, r, rm, rt, lt, gap)
+        build_arm_segment_model(total, r, rm, rt, lt, gap, touching)
         generate_tetrahedra("layered_arm")
         conforming = from_gmsh_model(gmsh.model)
     mesh = combine(split_bodies(conforming))
     logger.info("layered_arm(length=%g, radius=%g, muscle_radius=%g, tendon_radius=%g, tendon_length=%g, "
-                "spacing=%g, size=%g, turn_elements=%d): %d tets, %d points (%d conforming) in %.2f s", total, r, rm,
-                rt, lt, gap, lc, turn_elements, mesh.num_cells, mesh.num_points, conforming.num_points,
-                time.perf_counter() - start)
+                "spacing=%g, size=%g, turn_elements=%d, touching=%s): %d tets, %d points (%d conforming) in %.2f s",
+                total, r, rm, rt, lt, gap, lc, turn_elements, touching, mesh.num_cells, mesh.num_points,
+                conforming.num_points, time.perf_counter() - start)
     return conforming, mesh

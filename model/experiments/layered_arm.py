@@ -35,10 +35,15 @@ from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PAIRS", "ArmResult", "arm_config", "compare_arms", "run_arm", "skin_difference"]
+__all__ = ["PAIRS", "TOUCHING_PAIRS", "ArmResult", "arm_config", "compare_arms", "run_arm", "skin_difference"]
 
 #: The segment's length (meshes.arm_segment's default; the bulge band is its middle fifth).
 LENGTH = 0.12
+#: The contact pairs of the layered arm with touching muscles (layered_arm's touching = true): the fat slides on
+#: each muscle's round surface, the muscles' flat faces are in contact.
+TOUCHING_PAIRS = (("fat_on_a", "fat_cavity_a", "a_round", "sliding"),
+                  ("fat_on_b", "fat_cavity_b", "b_round", "sliding"),
+                  ("a_on_b", "a_flat", "b_flat", "contact"))
 #: The contact pairs of the layered arm: (name, slave, master, kind).
 PAIRS = (("fat_on_a", "fat_cavity_a", "a_lateral", "sliding"),
          ("fat_on_b", "fat_cavity_b", "b_lateral", "sliding"),
@@ -53,11 +58,15 @@ def _muscle(region: str, tendon: str, origin: str, insertion: str, activation: f
 
 
 def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: int = 4,
-               k_sliding: float = 1e10, k_contact: float = 1e10, tolerance: float = 1e-6) -> RunConfig:
+               k_sliding: float = 1e10, k_contact: float = 1e10, tolerance: float = 1e-6,
+               activations: tuple[float, float] = (1.0, 0.3), touching: float | None = None,
+               augmented: bool = True) -> RunConfig:
     """examples/arm_segment.toml (``layered`` False) or its layered twin examples/layered_arm.toml (the mesh
     generator layered_arm, its region names, the [[contact]] pairs :data:`PAIRS` with penalties ``k_sliding`` and
-    ``k_contact``, the muscles' contact augmented to ``tolerance`` x size), with mesh ``size`` and
-    ``turn_elements``."""
+    ``k_contact``, the muscles' contact augmented to ``tolerance`` x size unless ``augmented`` is False), with
+    mesh ``size`` and ``turn_elements``, the muscles a and b activated to ``activations``; ``touching`` (layered
+    only): the muscles' spacing, with layered_arm's touching = true (examples/layered_arm_touching.toml: bellies
+    cut at x = 0, sharing a flat face, no fat between them) and the pairs :data:`TOUCHING_PAIRS`."""
     if layered:
         names = {"fat": "fat", "belly_a": "a_belly", "tendon_a": "a_tendon", "belly_b": "b_belly",
                  "tendon_b": "b_tendon", "proximal": "fat_proximal", "distal": "fat_distal"}
@@ -65,21 +74,23 @@ def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, step
         names = {n: n for n in ("fat", "belly_a", "tendon_a", "belly_b", "tendon_b", "proximal", "distal")}
     raw: dict[str, Any] = {
         "mesh": {"generator": "layered_arm" if layered else "arm_segment", "size": size,
-                 "turn_elements": turn_elements},
+                 "turn_elements": turn_elements,
+                 **({"spacing": touching, "touching": True} if touching is not None else {})},
         "discretization": {"degree": 1, "quadrature_degree": "auto"},
         "material": [{"region": names["fat"], "law": "stvk", "E": 1.0e6, "nu": 0.45},
-                     *_muscle(names["belly_a"], names["tendon_a"], "a_origin", "a_insertion", 1.0),
-                     *_muscle(names["belly_b"], names["tendon_b"], "b_origin", "b_insertion", 0.3)],
+                     *_muscle(names["belly_a"], names["tendon_a"], "a_origin", "a_insertion", activations[0]),
+                     *_muscle(names["belly_b"], names["tendon_b"], "b_origin", "b_insertion", activations[1])],
         "boundary": [{"on": on, "type": "displacement", "value": [0.0, 0.0, 0.0]}
                      for on in (names["proximal"], names["distal"], "a_origin", "a_insertion", "b_origin",
                                 "b_insertion")],
         "loading": {"steps": steps},
     }
     if layered:
+        augment = {"augmented": True, "tolerance": tolerance} if augmented else {}
         raw["contact"] = [{"surface": slave, "master": master, "method": "penalty",
-                           **({"penalty": k_contact, "augmented": True, "tolerance": tolerance} if kind == "contact"
+                           **({"penalty": k_contact, **augment} if kind == "contact"
                               else {"penalty": k_sliding, "sliding": True})}
-                          for _, slave, master, kind in PAIRS]
+                          for _, slave, master, kind in (PAIRS if touching is None else TOUCHING_PAIRS)]
         # the lagged pairing converges linearly (model.problem.body_contact: the nodal normals)
         raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8}}
     return parse(raw)
@@ -120,6 +131,7 @@ class ArmResult:
     slip: dict[str, dict[str, float]] = field(default_factory=dict)
     pairs: dict[str, dict[str, Any]] = field(default_factory=dict)
     muscle_gap: float = float("nan")
+    reactions: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: float = 0.0
 
 
@@ -141,19 +153,23 @@ def _slip(problem: ElasticityProblem, fat: str, muscle: str) -> dict[str, float]
 
 
 def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: int = 4, k_sliding: float = 1e10,
-            k_contact: float = 1e10, comm: MPI.Comm = MPI.COMM_WORLD) -> ArmResult:
+            k_contact: float = 1e10, comm: MPI.Comm = MPI.COMM_WORLD, activations: tuple[float, float] = (1.0, 0.3),
+            touching: float | None = None, augmented: bool = True) -> ArmResult:
     """Run the conforming (``layered`` False) or the layered arm to full activation and measure it (module
-    docstring). Collective."""
+    docstring; ``activations``, ``touching`` and ``augmented``: :func:`arm_config`). Collective."""
     import time
 
     from model.pipeline import build, make_solver
+    from model.problem.measurements import reactions
     from model.solvers.loadstepping import step_loads
 
     start = time.perf_counter()
-    config = arm_config(layered, size, turn_elements, steps, k_sliding, k_contact)
+    config = arm_config(layered, size, turn_elements, steps, k_sliding, k_contact, activations=activations,
+                        touching=touching, augmented=augmented)
     setup = build(config, comm)
     problem = setup.problem
-    pairs = {name: setup.contacts[i] for i, (name, *_) in enumerate(PAIRS)} if layered else {}
+    names = PAIRS if touching is None else TOUCHING_PAIRS
+    pairs = {name: setup.contacts[i] for i, (name, *_) in enumerate(names)} if layered else {}
     solver = make_solver(problem, config, setup.contacts)
     records: list[Any] = []
     outcome = step_loads(solver, steps, on_step=records.append)
@@ -165,9 +181,11 @@ def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: 
     result = ArmResult(layered, msh.topology.index_map(3).size_global, problem.space.dofmap.index_map.size_global * 3,
                        bool(outcome.completed), iterations, X, u, bulge_max, bulge_mean)
     if layered:
-        result.slip = {"a": _slip(problem, "fat_cavity_a", "a_lateral"),
-                       "b": _slip(problem, "fat_cavity_b", "b_lateral")}
+        result.slip = {m: _slip(problem, f"fat_cavity_{m}", names[i][2]) for i, m in enumerate("ab")}
         result.pairs = {name: pair.report() for name, pair in pairs.items()}
+        residual = solver.unconstrained_residual()
+        result.reactions = {name: np.asarray(f) for name, f in reactions(problem, residual).items()}
+        residual.destroy()
         gaps = pairs["a_on_b"].nodal_gaps()
         result.muscle_gap = float(comm.allreduce(float(gaps.min(initial=np.inf)), op=MPI.MIN))
     solver.destroy()
