@@ -259,7 +259,7 @@ print(f"phase 1: V = {two.first_steps[-1].volume:.4f} at p = {two.first_steps[-1
       f"phase 2: V = {two.steps[-1].volume:.4f}, contact fraction {report['contact_fraction']:.3f} at "
       f"p = {two.steps[-1].pressure:.4e}, max penetration {report['max_penetration']:.2e}, "
       f"force {np.round(report['force'], 5)}")
-assert report["contact_fraction"] >= 0.05
+assert report["contact_fraction"] >= 0.05, report
 
 # %%
 if plt is not None and COMM.size == 1:
