@@ -122,11 +122,15 @@ def _membrane(args: argparse.Namespace, overrides: dict) -> int:
     from model.config.membrane import load_membrane
     from model.errors import ConfigError, SolveFailed
     from model.experiments.membrane_run import run_membrane
+    from model.pipeline import Interrupted
 
     try:
         if args.restart is not None:
             raise ConfigError("--restart: a membrane run has no restart (run it again)")
         summary = run_membrane(load_membrane(args.config, overrides), args.out)
+    except Interrupted as err:
+        _error(str(err))
+        return 128 + err.signum
     except ConfigError as err:
         _error(str(err))
         return 2

@@ -112,6 +112,10 @@ class _StopFlag:
         return int(comm.allreduce(self.signum, op=MPI.MAX))
 
 
+#: the public name (model.experiments.membrane_run stops its pressure steps with it too)
+StopFlag = _StopFlag
+
+
 @dataclass
 class Setup:
     domain: Domain

@@ -14,15 +14,18 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import time
 import tomllib
 from pathlib import Path
 
 import jsonschema
+import meshio
 import numpy as np
 import pytest
-from conftest import EXAMPLES, MEMBRANE_EXAMPLES, ROOT, environment, serial_only
+from conftest import EXAMPLES, MEMBRANE_EXAMPLES, ROOT, environment, serial_only, write_toml
 from mpi4py import MPI
 
 from model.config.membrane import load_membrane
@@ -172,3 +175,67 @@ def test_a_membrane_file_is_not_a_solid_run() -> None:
 
     with pytest.raises(ConfigError, match=r"^membrane: this file is a membrane run .*python -m model run FILE"):
         load(BALLOON)
+
+
+class _StopAfter:
+    """A stop flag (model.pipeline.StopFlag's check) that reports SIGTERM from its ``n``-th check on."""
+
+    def __init__(self, n: int) -> None:
+        self.n, self.calls = n, 0
+
+    def check(self, comm: MPI.Comm) -> int:
+        self.calls += 1
+        return int(signal.SIGTERM) if self.calls >= self.n else 0
+
+
+def test_an_interrupted_run_keeps_its_steps(shared_tmp: Path) -> None:
+    """Stopped after its second pressure step (the check the SIGTERM handler answers): Interrupted with the signal,
+    summary.json "interrupted" with those two steps, the XDMF series readable with both (meshio), the VTU files
+    of both; the steps equal the uninterrupted run's first two."""
+    from model.experiments.membrane_run import run_membrane
+    from model.pipeline import Interrupted
+
+    full = _run(shared_tmp, name="whole")
+    out = shared_tmp / "interrupted"
+    with pytest.raises(Interrupted, match="interrupted by SIGTERM after pressure step 2") as caught:
+        run_membrane(load_membrane(BALLOON), out, MPI.COMM_WORLD, stop=_StopAfter(2))
+    assert caught.value.signum == signal.SIGTERM
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and len(summary["steps"]) == 2
+    for mine, whole in zip(summary["steps"], full["steps"][:2], strict=True):
+        assert mine["volume"] == pytest.approx(whole["volume"], rel=1e-12)
+    if MPI.COMM_WORLD.rank == 0:
+        with meshio.xdmf.TimeSeriesReader(out / "surface.xdmf") as reader:
+            reader.read_points_cells()
+            assert reader.num_steps == 2
+            times = [reader.read_data(k)[0] for k in range(reader.num_steps)]
+        assert times == pytest.approx([s["pressure"] for s in summary["steps"]], rel=1e-12)
+        assert sorted(p.name for p in out.glob("surface_*.vtu")) == ["surface_0001.vtu", "surface_0002.vtu"]
+
+
+@serial_only
+def test_sigterm_ends_a_membrane_run_cleanly(tmp_path: Path) -> None:
+    """``python -m model run`` of a membrane file, SIGTERM once summary.json shows two steps: exit 143, status
+    "interrupted", every finished step in summary.json and in the XDMF series."""
+    config = tmp_path / "long.toml"
+    raw = tomllib.loads(BALLOON.read_text())
+    raw["inflation"] = {"pressure": 6.0e-3, "steps": 3000}  # long enough to be stopped (about 0.03 s a step)
+    raw["output"] = {"xdmf": True, "vtu": False}
+    write_toml(raw, config)
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-m", "model", "run", str(config), "--out", str(out)],
+                               env=environment(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 300
+    while not (out / "summary.json").exists() or len(json.loads((out / "summary.json").read_text())["steps"]) < 2:
+        assert process.poll() is None, f"the run ended before the signal: {process.communicate()}"
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=300)
+    assert process.returncode == 128 + signal.SIGTERM, stderr[-2000:]
+    assert "interrupted by SIGTERM" in stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and 2 <= len(summary["steps"]) < 3000
+    with meshio.xdmf.TimeSeriesReader(out / "surface.xdmf") as reader:
+        reader.read_points_cells()
+        assert reader.num_steps == len(summary["steps"])

@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import logging
+import signal
 import time
 from dataclasses import asdict
 from functools import cache
@@ -37,6 +38,7 @@ from model.domain.distribute import build_domain
 from model.errors import SolveFailed
 from model.experiments.membrane import deformed_points
 from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_json_atomic
+from model.pipeline import Interrupted, StopFlag
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, hencky, radial_orientation
 from model.problem.membrane_contact import ObstacleContact
 from model.solvers.membrane import InflationStep, inflate, inflate_to_volume
@@ -111,10 +113,23 @@ def _hencky(nu: float) -> Any:
     return hencky(nu)
 
 
-def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD
-                 ) -> dict[str, Any]:
+def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
+                 stop: Any = None) -> dict[str, Any]:
     """Run a membrane configuration into ``out`` (default output.dir) and return summary.json's content.
-    SolveFailed (after writing the summary, status "failed") when Newton gives up. Collective."""
+    SolveFailed (after writing the summary, status "failed") when Newton gives up. Collective.
+
+    summary.json is rewritten after every pressure step of a ramp or list (status "running"), so a run that dies
+    keeps the steps it finished, next to their surfaces (each XDMF step is closed when written). SIGINT or SIGTERM
+    stop the run after the step it is solving (model.pipeline.StopFlag; ``stop``: any object whose
+    ``check(comm)`` returns the signal number, 0 for none): status "interrupted", then model.pipeline.Interrupted.
+    """
+    if stop is None:
+        with StopFlag() as flag:
+            return _run_membrane(config, out, comm, flag)
+    return _run_membrane(config, out, comm, stop)
+
+
+def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, stop: Any) -> dict[str, Any]:
     start = time.perf_counter()
     out = Path(out) if out is not None else config.output.dir
     if comm.rank == 0:
@@ -147,6 +162,13 @@ def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.C
         "steps": [], "contacts": [], "wall_time_s": 0.0,
     }
     writer = _Writer(problem, data, num_points, out, config.output.xdmf, config.output.vtu)
+
+    def save() -> None:
+        summary["files"] = [*writer.files, SUMMARY]
+        summary["wall_time_s"] = time.perf_counter() - start
+        if comm.rank == 0:
+            write_json_atomic(out / SUMMARY, summary)
+
     error = None
     try:
         pressures = inflation.ramp
@@ -156,6 +178,15 @@ def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.C
                 steps += inflate(problem, [p], cutbacks=inflation.cutbacks)
                 summary["steps"].append(_step_record(steps[-1], problem, config, law, rest_volume))
                 writer.write(p)
+                signum = stop.check(comm)
+                if signum:
+                    summary["contacts"] = [c.report() for c in contacts]
+                    summary["status"] = "interrupted"
+                    save()
+                    comm.barrier()
+                    raise Interrupted(signum, f"interrupted by {signal.Signals(signum).name} after pressure step "
+                                              f"{len(steps)} (p = {p:.6g}); results in {out}")
+                save()
         else:
             dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
             steps = inflate_to_volume(problem, inflation.volume, dp, max_steps=inflation.max_steps,
@@ -171,10 +202,7 @@ def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.C
     summary["status"] = "failed" if error else "completed"
     if error:
         summary["error"] = error
-    summary["files"] = [*writer.files, SUMMARY]
-    summary["wall_time_s"] = time.perf_counter() - start
-    if comm.rank == 0:
-        write_json_atomic(out / SUMMARY, summary)
+    save()
     comm.barrier()
     if error:
         raise SolveFailed(error)
