@@ -5,7 +5,7 @@ RELEASE_DATA set to the folder holding both legs' outputs (``debian12/`` and ``d
 Probes, reactions, energies (strain, active, penalty, total potential), volumes and contact forces of
 every converged step agree to 1e-8
 relative (to the largest magnitude of the quantity, e.g. of any reaction, over the run), the verify references psi, P, A
-of every law to 1e-12 relative (ogden 1e-10, stable_neo_hookean 1e-11: VERIFY_RTOL). Without both outputs
+of every law to 1e-12 relative (ogden 1e-9, stable_neo_hookean 1e-11: VERIFY_RTOL). Without both outputs
 the tests are skipped, saying why.
 """
 
@@ -80,8 +80,10 @@ def test_same_results(name: str) -> None:
 
 
 #: laws whose reference goes through LAPACK, whose rounding differs between the legs' numpy (1.x vs 2.x):
-#: ogden's per-point eigenbasis (eigh; measured 3.4e-11 in P), stable_neo_hookean's paper variant (1.4e-12)
-VERIFY_RTOL = {"ogden": 1e-10, "stable_neo_hookean": 1e-11}
+#: ogden's per-point eigenbasis (eigh; measured 3.4e-11 in P on one machine, 6.2e-11 in P and 1.1e-10 in A on
+#: another: the tangent's divided differences of nearly equal stretches amplify eigh's rounding),
+#: stable_neo_hookean's paper variant (1.4e-12)
+VERIFY_RTOL = {"ogden": 1e-9, "stable_neo_hookean": 1e-11}
 
 
 @pytest.mark.parametrize("law", sorted(VERIFY_PARAMS))
