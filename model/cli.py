@@ -118,25 +118,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _membrane(args: argparse.Namespace, overrides: dict) -> int:
-    """``run`` of a membrane document (model.config.membrane; model.experiments.membrane_run): exit codes as run."""
+    """``run`` of a membrane document (model.config.membrane; model.experiments.membrane_run). Called inside
+    ``run``'s error handling: ConfigError, SolveFailed and Interrupted give the same exit codes as a solid run."""
     from model.config.membrane import load_membrane
-    from model.errors import ConfigError, SolveFailed
+    from model.errors import ConfigError
     from model.experiments.membrane_run import run_membrane
-    from model.pipeline import Interrupted
 
-    try:
-        if args.restart is not None:
-            raise ConfigError("--restart: a membrane run has no restart (run it again)")
-        summary = run_membrane(load_membrane(args.config, overrides), args.out)
-    except Interrupted as err:
-        _error(str(err))
-        return 128 + err.signum
-    except ConfigError as err:
-        _error(str(err))
-        return 2
-    except SolveFailed as err:
-        _error(str(err))
-        return 1
+    if args.restart is not None:
+        raise ConfigError("--restart: a membrane run has no restart (run it again)")
+    summary = run_membrane(load_membrane(args.config, overrides), args.out)
     if MPI.COMM_WORLD.rank == 0:
         last = summary["steps"][-1]
         print(f"done: membrane, {len(summary['steps'])} pressure steps, {summary['surface']['triangles']} "
