@@ -41,3 +41,18 @@ def test_scaling_benchmark_smallest_sizes(tmp_path: Path) -> None:
     assert "| th_0.4999 | iterative | 1 rank(s) |" in out and "time 1 rank / 2 ranks" in out
     assert (tmp_path / "scaling.png").stat().st_size > 10_000
     assert not any(math.isnan(r["peak_mb"]) for r in rows)
+
+
+@serial_only
+def test_scaling_report_of_the_documented_runs(tmp_path: Path) -> None:
+    """docs/scaling.json (every row of docs/solvers.md's scaling table) redraws the plot and gives the fits the
+    docs quote: time ~ dofs^1.12 (1 rank) and 1.09 (2 ranks) for the iterative Taylor-Hood bar from 5e4 dofs."""
+    plot = tmp_path / "scaling.png"
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "scaling.py"), "--report", str(ROOT / "docs" / "scaling.json"),
+         "--plot", str(plot)], capture_output=True, text=True, timeout=300, env=environment(), cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "| th_0.4999 | iterative | 1 rank(s) | 1.12 |" in done.stdout, done.stdout
+    assert "| th_0.4999 | iterative | 2 rank(s) | 1.09 |" in done.stdout, done.stdout
+    assert "| th_0.4999 | iterative | 426564 | 2.08 |" in done.stdout, done.stdout
+    assert plot.stat().st_size > 10_000
