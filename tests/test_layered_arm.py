@@ -146,9 +146,10 @@ def touching() -> ArmResult:
 
 
 def test_touching_muscles_press_on_each_other(touching: ArmResult) -> None:
-    """Both muscles fully active bulge into each other: the flat-face contact carries force (measured 10.9 N on
-    33 nodes), the penetration is the penalty's p / k (3.7 um at k = 1e11, below 5 % of the skin bulge), and the
-    fat still slides on both muscles (|g| within its springs' give, slip far larger)."""
+    """Both muscles fully active bulge into each other: the flat-face contact carries force (measured 10.2 N on
+    33 nodes), the penetration is the penalty's p / k (3.1 um at k = 1e11, below 5 % of the skin bulge), and the
+    fat still slides on both muscles (|g| within its springs' give, slip far larger). Newton 13 + 17 iterations
+    on Debian 12's mesh, 15 + 12 on Debian 13's (full steps: model.problem.body_contact, potential_reason)."""
     assert touching.completed and touching.newton_iterations and max(touching.newton_iterations) <= 20
     contact = touching.pairs["a_on_b"]
     assert contact["pair"] == "a_flat-b_flat" and contact["kind"] == "contact"
@@ -169,7 +170,8 @@ def test_touching_muscles_press_on_each_other(touching: ArmResult) -> None:
 def test_touching_action_equals_reaction(touching: ArmResult) -> None:
     """Each body is in equilibrium under its clamps' reactions and its pairs' forces, with the force on b from a
     taken as minus the reported force on a from b (and the force on a muscle from the fat as minus the force on
-    the fat): the residual is below 1 % of the contact force; the clamps' reactions sum to zero (all internal)."""
+    the fat): the residual is below 0.1 % of the contact force (measured 4e-4 N of 10.2 N; 0.7 % when the fat's
+    nodes on the flat face's rim were tied to both muscles); the clamps' reactions sum to zero (all internal)."""
     R, pairs = touching.reactions, touching.pairs
     f_ab, f_fa, f_fb = (np.asarray(pairs[n]["force"]) for n in ("a_on_b", "fat_on_a", "fat_on_b"))
     scale = pairs["a_on_b"]["normal_force"]
@@ -178,5 +180,5 @@ def test_touching_action_equals_reaction(touching: ArmResult) -> None:
                  "fat": R["fat_proximal"] + R["fat_distal"] + f_fa + f_fb,
                  "all": sum(R.values())}
     for body, residual in residuals.items():
-        assert np.linalg.norm(residual) < 0.01 * scale, (body, residual)
+        assert np.linalg.norm(residual) < 1e-3 * scale, (body, residual)
     assert MPI.COMM_WORLD.allreduce(scale, op=MPI.MAX) == scale  # the same on every rank
