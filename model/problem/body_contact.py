@@ -34,6 +34,12 @@ linearisation would add terms proportional to g (the normal's rotation) and to t
 (zero at a closest point where T is flat). Newton therefore converges quadratically once the pairing stops
 changing, and superlinearly on curved surfaces (measured in tests/test_body_contact.py).
 
+Sliding with smoothed normals has no consistent potential (R = k g N is not d/du of (k/2) g^2: the lagged slip of
+x* changes g by the tangential part of N), so such a pair gives a ``potential_reason`` and the Newton solver takes
+full steps instead of a line search on the total potential (which failed on the touching layered arm, Debian 13's
+mesh). A slave node of two sliding pairs (tied to two surfaces: the fat's nodes on the rim of the face that two
+touching muscles share) is left out of both (``leave_shared``, on for sliding).
+
 P1 displacement formulation only (the nodal rule); the master surface's triangles are gathered on every rank
 (each rank pairs its own slave nodes), so the search is MPI-correct with the same result on any number of ranks.
 """
