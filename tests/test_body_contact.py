@@ -213,3 +213,26 @@ def test_blocks_close_a_gap_and_then_press() -> None:
     one.destroy()
     # the stack is compressed by about (d - g0) / 2 per block at the end: E ~ 1e4, strain ~ 0.05, p ~ 5e2
     assert 300.0 < seen[-1][1]["force"][2] < 700.0
+
+
+def test_sliding_has_no_consistent_potential_and_nodes_tied_twice_are_left_out() -> None:
+    """A sliding pair (smoothed normals) says its residual is not its energy's derivative, so the Newton solver takes
+    full steps (no line search on the total potential); a contact pair (T's own normal) does not. A slave node of
+    two sliding pairs is left out of both: upper_zmin and upper_ymin (2 x 2 cells each) share the 3 nodes of their
+    common edge."""
+    problem, _ = stacked(1e6)
+    assert problem.potential_reason() is None
+    solver = NewtonSolver(problem)
+    assert solver.line_search == {"type": "bt", "merit": "total_potential"}
+    solver.destroy()
+    problem, bottom = stacked(1e6, kind="sliding")
+    assert "upper_zmin-lower_zmax" in problem.potential_reason() and bottom.left_out == 0
+    solver = NewtonSolver(problem)
+    assert solver.line_search == {"type": "basic", "merit": "none"}
+    solver.destroy()
+    side = BodyContact(problem, "upper_ymin", "lower_zmax", 1e6, kind="sliding")
+    assert bottom.left_out == 3 and side.left_out == 3
+    comm = MPI.COMM_WORLD
+    assert comm.allreduce(len(bottom.slave_blocks), op=MPI.SUM) == 6
+    assert comm.allreduce(len(side.slave_blocks), op=MPI.SUM) == 6
+    assert not set(bottom.slave_blocks) & set(side.slave_blocks)
