@@ -116,12 +116,13 @@ PAIR_BODIES = ("upper", "lower")
 
 def sphere_pair(radius: float = 1.0, lower_radius: float | None = None, size: float = 0.25,
                 pole_size: float | None = None, pole_radius: float | None = None,
-                lower_pole_size: float | None = None, growth: float = 0.3) -> MeshData:
+                lower_pole_size: float | None = None, growth: float = 0.3, gap: float = 0.0) -> MeshData:
     """Two ball octants (x, y >= 0) touching at the origin: ``upper``, the part z <= R1 of the ball of radius
     R1 = ``radius`` about (0, 0, R1), and ``lower``, the part z >= -R2 of the ball of radius R2 = ``lower_radius``
     (default R1) about (0, 0, -R2); each refined near the origin as :func:`sphere` near its pole (``pole_size``;
     ``lower_pole_size``, default ``pole_size``, for the lower one: different sizes make the two meshes meet
-    at non-matching nodes; ``growth`` as :func:`sphere`'s).
+    at non-matching nodes; ``growth`` as :func:`sphere`'s). ``gap`` >= 0 (default 0): the upper octant moved up by
+    it, so that the two start that far apart (the upper ball about (0, 0, R1 + gap)).
 
     The lower octant is :func:`sphere`'s turned by 180 degrees about the line x = y, z = 0 ((x, y, z) ->
     (y, x, -z), which keeps the cells' orientation) and moved down by R2.
@@ -137,10 +138,12 @@ def sphere_pair(radius: float = 1.0, lower_radius: float | None = None, size: fl
 
     R1 = positive_float("sphere_pair", "radius", radius)
     R2 = R1 if lower_radius is None else positive_float("sphere_pair", "lower_radius", lower_radius)
+    if isinstance(gap, bool) or not isinstance(gap, (int, float)) or not 0.0 <= gap < float("inf"):
+        raise ParameterError(f"sphere_pair: gap must be a finite number >= 0, got {gap!r}")
     upper = sphere(R1, size, True, pole_size, pole_radius, growth)
     lower = sphere(R2, size, True, pole_size if lower_pole_size is None else lower_pole_size,
                    pole_radius, growth)
-    upper = MeshData(upper.points + np.array([0.0, 0.0, R1]), upper.cells, upper.cell_tags, upper.facets,
+    upper = MeshData(upper.points + np.array([0.0, 0.0, R1 + float(gap)]), upper.cells, upper.cell_tags, upper.facets,
                      upper.facet_tags, dict(upper.region_names),
                      {("sphere" if k == "surface" else k): v for k, v in upper.boundary_names.items()})
     renamed = {"xmin": "ymin", "ymin": "xmin", "zmax": "zmin", "surface": "sphere"}

@@ -148,3 +148,91 @@ def test_bad_input_is_refused() -> None:
         BodyContact(problem, "upper_zmin", "lower_zmax", -1.0)
     with pytest.raises(ValueError, match="surface"):
         BodyContact(problem, "upper_zmin", "nowhere", 1e6)
+
+
+# --- bodies that start apart and close a gap -------------------------------------------------------------------------
+
+GAP = 0.05  # the blocks start this far apart
+CLOSURE = 0.15  # the upper block's top is moved down by this (at load factor 1): the stack is compressed by 0.1
+
+
+def test_blocks_close_a_gap_and_then_press() -> None:
+    """meshes.stacked_blocks(gap=g0): the upper block's top moved down by lambda d (rollers on x = 0 and y = 0, the
+    lower block's bottom on rollers), in four steps; the gap closes at lambda = g0 / d = 1/3. While it is open
+    (lambda = 0.25) the contact carries nothing (force 0, no active node, the gap g0 - lambda d) and the upper block
+    moves rigidly; once closed the nine slave nodes are active, the contact force is the top's reaction (p A, A = 1)
+    and the top's displacement is the one-body block's under that pressure plus the gap closure and the penalty's
+    give: -lambda d = w_one(p) - g0 - p/k."""
+    comm = MPI.COMM_WORLD
+    k = 1e7
+    data = meshes.stacked_blocks((1.0, 1.0, 1.0), (2, 2, 2), gap=GAP) if comm.rank == 0 else None
+    problem = ElasticityProblem(build_domain(comm, data), [("lower", LAW), ("upper", LAW)], 1)
+    problem.add_dirichlet("lower_zmin", (2,), [0.0])
+    problem.add_dirichlet("upper_zmax", (2,), [-CLOSURE])
+    for body in ("lower", "upper"):
+        problem.add_dirichlet(f"{body}_xmin", (0,), [0.0])
+        problem.add_dirichlet(f"{body}_ymin", (1,), [0.0])
+    contact = BodyContact(problem, "upper_zmin", "lower_zmax", k)
+    solver = NewtonSolver(problem, options=OPTIONS)
+    from model.problem.measurements import reactions
+
+    X = problem.space.tabulate_dof_coordinates()[:, 2]
+    owned = problem.space.dofmap.index_map.size_local
+    in_upper = X[:owned] > 1.0 + 0.5 * GAP
+    seen: list[tuple[float, dict, list[float], int]] = []
+
+    def record(step) -> None:  # noqa: ANN001 - StepRecord
+        if step.result.converged:
+            residual = solver.unconstrained_residual()
+            seen.append((step.load_factor, contact.report(), reactions(problem, residual)["upper_zmax"],
+                         step.result.iterations))
+            residual.destroy()
+            u = problem.solution.x.array.reshape(-1, 3)[:owned]
+            if step.load_factor * CLOSURE < GAP:  # open: the upper block translates, the lower one stays
+                assert np.allclose(u[in_upper], [0.0, 0.0, -step.load_factor * CLOSURE], atol=1e-12)
+                assert np.allclose(u[~in_upper], 0.0, atol=1e-12)
+
+    assert step_loads(solver, 4, on_step=record).completed
+    solver.destroy()
+    assert [s[0] for s in seen] == pytest.approx([0.25, 0.5, 0.75, 1.0])
+    lam, report, _, _ = seen[0]
+    assert report["active_points"] == 0 and report["force"] == [0.0, 0.0, 0.0] and report["normal_force"] == 0.0
+    assert report["max_gap"] == pytest.approx(GAP - lam * CLOSURE, rel=1e-12)
+    pressures = [s[1]["force"][2] for s in seen[1:]]
+    reference = one_body(pressure=pressures[-1])  # the one body under each pressure: its load factor p / p_end
+    one = NewtonSolver(reference, options=OPTIONS)
+    for (lam, report, top, iterations), p in zip(seen[1:], pressures):
+        assert report["active_points"] == 9  # switched on within the run
+        assert p > 0.0 and report["normal_force"] == pytest.approx(p, rel=1e-12)
+        assert top[2] == pytest.approx(-p, rel=1e-9)  # the top's reaction is the contact force
+        assert report["max_penetration"] == pytest.approx(p / k, rel=1e-9)
+        reference.set_load_factor(p / pressures[-1])
+        assert one.solve().converged
+        assert -lam * CLOSURE == pytest.approx(top_displacement(reference) - GAP - p / k, rel=1e-9)
+        assert iterations <= 8, iterations
+    one.destroy()
+    # the stack is compressed by about (d - g0) / 2 per block at the end: E ~ 1e4, strain ~ 0.05, p ~ 5e2
+    assert 300.0 < seen[-1][1]["force"][2] < 700.0
+
+
+def test_sliding_has_no_consistent_potential_and_nodes_tied_twice_are_left_out() -> None:
+    """A sliding pair (smoothed normals) says its residual is not its energy's derivative, so the Newton solver takes
+    full steps (no line search on the total potential); a contact pair (T's own normal) does not. A slave node of
+    two sliding pairs is left out of both: upper_zmin and upper_ymin (2 x 2 cells each) share the 3 nodes of their
+    common edge."""
+    problem, _ = stacked(1e6)
+    assert problem.potential_reason() is None
+    solver = NewtonSolver(problem)
+    assert solver.line_search == {"type": "bt", "merit": "total_potential"}
+    solver.destroy()
+    problem, bottom = stacked(1e6, kind="sliding")
+    assert "upper_zmin-lower_zmax" in problem.potential_reason() and bottom.left_out == 0
+    solver = NewtonSolver(problem)
+    assert solver.line_search == {"type": "basic", "merit": "none"}
+    solver.destroy()
+    side = BodyContact(problem, "upper_ymin", "lower_zmax", 1e6, kind="sliding")
+    assert bottom.left_out == 3 and side.left_out == 3
+    comm = MPI.COMM_WORLD
+    assert comm.allreduce(len(bottom.slave_blocks), op=MPI.SUM) == 6
+    assert comm.allreduce(len(side.slave_blocks), op=MPI.SUM) == 6
+    assert not set(bottom.slave_blocks) & set(side.slave_blocks)

@@ -47,6 +47,29 @@ def test_two_deformable_spheres_against_hertz() -> None:
     assert point.uzawa_rounds <= 4, point
 
 
+def test_spheres_that_start_apart() -> None:
+    """meshes.sphere_pair(gap = g0 = D): the spheres start D apart and the upper equator moves down by 2 D in three
+    steps (coarse mesh): at t = 1/3 they are still apart (d = -D/3: no force, no active node), then touch, and from
+    there the run is the touching spheres' moved rigidly by g0 (neo-Hookean: translation does not change the stress):
+    the force at the approach d = t 2D - g0 is the force of the run without a gap at the same d (the same at d = D/3,
+    2e-4 apart at d = D: the Uzawa rounds' different paths, within their tolerance), and within the coarse mesh's
+    error of Hertz's (+7.8 % at D/3, +7.2 % at D). 10 s."""
+    pole, growth, size = MESHES[0]
+    apart = hertz_spheres(pole, growth, size, approach=D, steps=3, gap=D)
+    touching = hertz_spheres(pole, growth, size, approach=D, steps=3)
+    assert apart.completed and touching.completed and len(apart.points) == 3
+    first, *pressed = apart.points
+    assert first.approach == pytest.approx(-D / 3, rel=1e-12)
+    assert first.force == 0.0 and first.active_points == 0 and first.hertz == 0.0
+    assert [p.approach for p in pressed] == pytest.approx([D / 3, D], rel=1e-9)
+    same = {round(p.approach / D, 6): p for p in touching.points}
+    for point in pressed:
+        assert point.active_points > 0
+        reference = same[round(point.approach / D, 6)]
+        assert point.force == pytest.approx(reference.force, rel=1e-3), (point, reference)
+        assert 0.0 < point.error < 0.12, point  # P1 on the coarse mesh: +7 % at d = D
+
+
 @pytest.mark.slow
 def test_hertz_mesh_refinement_and_exponent() -> None:
     """Three meshes: errors fall (about like h), the finest within 5 %; F ~ d^(3/2) between d/2 and d."""

@@ -11,7 +11,6 @@ same on 1 and 2 ranks).
 
 from __future__ import annotations
 
-import gmsh
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -106,13 +105,6 @@ def test_the_skin_bulges_less_than_when_glued(runs: tuple[ArmResult, ArmResult])
 # --- touching muscles (layered_arm's touching = true; examples/layered_arm_touching.toml) ---------------------------
 
 TOUCHING = {"size": 0.015, "turn_elements": 8, "spacing": 0.019}
-#: The touching run converges on Debian 12 (gmsh 4.8: 11,293 tets); on Debian 13 (gmsh 4.13, dolfinx 0.9) Newton
-#: stalls from the first step (line search; at the flat face's rim, then at a fat node on b_round) after 95-370 s
-#: of cutbacks: not yet robust, not diagnosed (docs/layers.md, "Touching muscles").
-converges_here = pytest.mark.skipif(gmsh.__version__ != "4.8.0",
-                                    reason="the touching run stalls on this gmsh's mesh (docs/layers.md)")
-
-
 def test_touching_muscles_share_a_flat_face_cut_open() -> None:
     """touching = true: the bellies overlap and are cut at x = 0; the flat face is in both muscles' lateral
     surfaces, every node of a_flat has a twin in b_flat, and the fat has no part of it (no fat between)."""
@@ -153,11 +145,11 @@ def touching() -> ArmResult:
                    augmented=False, size=TOUCHING["size"], turn_elements=TOUCHING["turn_elements"])
 
 
-@converges_here
 def test_touching_muscles_press_on_each_other(touching: ArmResult) -> None:
-    """Both muscles fully active bulge into each other: the flat-face contact carries force (measured 10.9 N on
-    33 nodes), the penetration is the penalty's p / k (3.7 um at k = 1e11, below 5 % of the skin bulge), and the
-    fat still slides on both muscles (|g| within its springs' give, slip far larger)."""
+    """Both muscles fully active bulge into each other: the flat-face contact carries force (measured 10.2 N on
+    33 nodes), the penetration is the penalty's p / k (3.1 um at k = 1e11, below 5 % of the skin bulge), and the
+    fat still slides on both muscles (|g| within its springs' give, slip far larger). Newton 13 + 17 iterations
+    on Debian 12's mesh, 15 + 12 on Debian 13's (full steps: model.problem.body_contact, potential_reason)."""
     assert touching.completed and touching.newton_iterations and max(touching.newton_iterations) <= 20
     contact = touching.pairs["a_on_b"]
     assert contact["pair"] == "a_flat-b_flat" and contact["kind"] == "contact"
@@ -175,11 +167,11 @@ def test_touching_muscles_press_on_each_other(touching: ArmResult) -> None:
         assert touching.slip[m]["max"] > 20.0 * max(pair["max_gap"], pair["max_penetration"])
 
 
-@converges_here
 def test_touching_action_equals_reaction(touching: ArmResult) -> None:
     """Each body is in equilibrium under its clamps' reactions and its pairs' forces, with the force on b from a
     taken as minus the reported force on a from b (and the force on a muscle from the fat as minus the force on
-    the fat): the residual is below 1 % of the contact force; the clamps' reactions sum to zero (all internal)."""
+    the fat): the residual is below 0.1 % of the contact force (measured 4e-4 N of 10.2 N; 0.7 % when the fat's
+    nodes on the flat face's rim were tied to both muscles); the clamps' reactions sum to zero (all internal)."""
     R, pairs = touching.reactions, touching.pairs
     f_ab, f_fa, f_fb = (np.asarray(pairs[n]["force"]) for n in ("a_on_b", "fat_on_a", "fat_on_b"))
     scale = pairs["a_on_b"]["normal_force"]
@@ -188,5 +180,5 @@ def test_touching_action_equals_reaction(touching: ArmResult) -> None:
                  "fat": R["fat_proximal"] + R["fat_distal"] + f_fa + f_fb,
                  "all": sum(R.values())}
     for body, residual in residuals.items():
-        assert np.linalg.norm(residual) < 0.01 * scale, (body, residual)
+        assert np.linalg.norm(residual) < 1e-3 * scale, (body, residual)
     assert MPI.COMM_WORLD.allreduce(scale, op=MPI.MAX) == scale  # the same on every rank

@@ -242,6 +242,20 @@ def test_sphere_pair_touches_at_the_origin() -> None:
     assert len(np.intersect1d(cells["upper"], cells["lower"])) == 0
 
 
+def test_sphere_pair_with_a_gap() -> None:
+    """gap = g0: the upper octant is the touching pair's moved up by g0 (its lowest point at z = g0), the lower one
+    unchanged; a negative gap is refused."""
+    params = {"radius": 1.0, "size": 0.4, "pole_size": 0.1, "pole_radius": 0.2}
+    touching, apart = generate("sphere_pair", **params), generate("sphere_pair", gap=0.05, **params)
+    upper = np.unique(touching.cells[touching.cell_tags == touching.region_names["upper"]])
+    moved = touching.points.copy()
+    moved[upper, 2] += 0.05
+    assert np.allclose(apart.points, moved, rtol=0.0, atol=1e-12)
+    assert face_points(apart, "upper_sphere")[:, 2].min() == pytest.approx(0.05, abs=1e-12)
+    with pytest.raises(ParameterError, match="sphere_pair: gap"):
+        generate("sphere_pair", gap=-0.1)
+
+
 # --- fusiform -----------------------------------------------------------------------------------
 
 

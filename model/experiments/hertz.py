@@ -70,8 +70,8 @@ class HertzPoint:
 
     @property
     def error(self) -> float:
-        """(F - F_Hertz) / F_Hertz."""
-        return (self.force - self.hertz) / self.hertz
+        """(F - F_Hertz) / F_Hertz (nan while the spheres are apart: F_Hertz = 0)."""
+        return (self.force - self.hertz) / self.hertz if self.hertz > 0.0 else float("nan")
 
 
 @dataclass
@@ -90,19 +90,21 @@ class HertzResult:
 def hertz_spheres(pole_size: float = 0.004, growth: float = 0.15, size: float = 0.125, approach: float = 2e-3,
                   steps: int = 1, radius: float = 1.0, lower_radius: float | None = None, pole_radius: float = 0.05,
                   E: tuple[float, float] = (1.0e4, 2.0e4), nu: tuple[float, float] = (0.3, 0.3), k: float = 1.0e7,
-                  tolerance: float = 1e-6, comm: MPI.Comm = MPI.COMM_WORLD) -> HertzResult:
+                  tolerance: float = 1e-6, comm: MPI.Comm = MPI.COMM_WORLD, gap: float = 0.0) -> HertzResult:
     """Press the two octants together by ``approach`` in ``steps`` equal load steps (module docstring); neo-Hookean
-    upper (E[0], nu[0]) and lower (E[1], nu[1]) spheres."""
+    upper (E[0], nu[0]) and lower (E[1], nu[1]) spheres. ``gap``: the spheres start that far apart
+    (meshes.sphere_pair's gap) and the upper equator moves down by gap + approach, so that at load factor t the
+    approach is d = t (gap + approach) - gap (negative: still apart, Hertz's force 0)."""
     R2 = radius if lower_radius is None else lower_radius
-    data = sphere_pair(radius, R2, size, pole_size, pole_radius, 1.25 * pole_size, growth) if comm.rank == 0 \
-        else None
+    data = sphere_pair(radius, R2, size, pole_size, pole_radius, 1.25 * pole_size, growth, gap) \
+        if comm.rank == 0 else None
     laws = [(body, forms.make_law("neo_hookean", E=e, nu=n)) for body, e, n in zip(("upper", "lower"), E, nu)]
     problem = ElasticityProblem(build_domain(comm, data), laws, 1)
     for body in ("upper", "lower"):
         problem.add_dirichlet(f"{body}_xmin", (0,), [0.0])
         problem.add_dirichlet(f"{body}_ymin", (1,), [0.0])
     problem.add_dirichlet("lower_zmin", (2,), [0.0])
-    problem.add_dirichlet("upper_zmax", (2,), [-approach])
+    problem.add_dirichlet("upper_zmax", (2,), [-(approach + gap)])
     contact = BodyContact(problem, "upper_sphere", "lower_sphere", k, augmented=True, tolerance=tolerance,
                           max_uzawa=30)
     solver = make_contact_solver(problem, [contact], {"snes_rtol": 1e-10, "snes_atol": 1e-9})
@@ -117,8 +119,8 @@ def hertz_spheres(pole_size: float = 0.004, growth: float = 0.15, size: float = 
         lam = contact.multiplier.x.array[contact.slave_q]
         pressed = np.maximum(lam - float(contact.k.value) * gaps, 0.0) > 0.0
         local = float(np.linalg.norm(slave_xy[pressed], axis=1).max(initial=0.0))
-        d = rec.load_factor * approach
-        points.append(HertzPoint(d, 4.0 * report["force"][2], hertz_force(d, radius, R2, *E, *nu),
+        d = rec.load_factor * (approach + gap) - gap
+        points.append(HertzPoint(d, 4.0 * report["force"][2], hertz_force(max(d, 0.0), radius, R2, *E, *nu),
                                  comm.allreduce(local, op=MPI.MAX), report["active_points"],
                                  report["max_penetration"], rec.result.iterations, solver.uzawa_iterations))
         log.info("Hertz spheres: d = %.3e, F = %.6g, Hertz %.6g (%+.2f %%), a = %.4f, %d active, %d Newton, %d Uzawa",

@@ -34,6 +34,12 @@ linearisation would add terms proportional to g (the normal's rotation) and to t
 (zero at a closest point where T is flat). Newton therefore converges quadratically once the pairing stops
 changing, and superlinearly on curved surfaces (measured in tests/test_body_contact.py).
 
+Sliding with smoothed normals has no consistent potential (R = k g N is not d/du of (k/2) g^2: the lagged slip of
+x* changes g by the tangential part of N), so such a pair gives a ``potential_reason`` and the Newton solver takes
+full steps instead of a line search on the total potential (which failed on the touching layered arm, Debian 13's
+mesh). A slave node of two sliding pairs (tied to two surfaces: the fat's nodes on the rim of the face that two
+touching muscles share) is left out of both (``leave_shared``, on for sliding).
+
 P1 displacement formulation only (the nodal rule); the master surface's triangles are gathered on every rank
 (each rank pairs its own slave nodes), so the search is MPI-correct with the same result on any number of ranks.
 """
@@ -106,7 +112,7 @@ class BodyContact:
 
     def __init__(self, problem: ElasticityProblem, slave: str, master: str, k: float, kind: str = "contact",
                  neighbours: int = 8, name: str | None = None, augmented: bool = False, tolerance: float = 1e-8,
-                 max_uzawa: int = 25, smooth_normals: bool | None = None) -> None:
+                 max_uzawa: int = 25, smooth_normals: bool | None = None, leave_shared: bool | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
         if not (np.isfinite(k) and k > 0):
@@ -141,6 +147,12 @@ class BodyContact:
         self.slave_blocks = blocks[blocks < owned]
         self.reference = V.tabulate_dof_coordinates()[:, :3]
         self._master_setup(fdim)
+        self.leave_shared = kind == "sliding" if leave_shared is None else bool(leave_shared)
+        self.left_out = 0
+        self.q_of_block: np.ndarray | None = None
+        self.Pi: PETSc.Mat | None = None
+        if self.leave_shared and kind == "sliding":
+            self._leave_shared()
         shared = np.intersect1d(self.slave_blocks, self.master_local.ravel())
         if self.comm.allreduce(len(shared), op=MPI.SUM):
             raise ValueError(f"master: {master!r} shares nodes with {slave!r} (give a boundary of another body: "
@@ -161,6 +173,7 @@ class BodyContact:
         q_of_block = np.full(len(self.reference), -1, dtype=np.int64)
         q_of_block[block_of_q] = np.arange(len(block_of_q))
         self.slave_q = q_of_block[self.slave_blocks]
+        self.q_of_block = q_of_block
         from model.problem.bones import body_size
 
         self.size = body_size(problem)
@@ -185,7 +198,6 @@ class BodyContact:
                      **{f"force{i}": pressure * self.normal[i] * ds for i in range(3)}}
         self._compiled: dict[str, Any] = {}
         self._stamp: np.ndarray | None = None
-        self.Pi: PETSc.Mat | None = None
         problem.add_energy(energy, "contact" if kind == "contact" else "sliding")
         problem.couplings.append(self)
 
@@ -217,6 +229,40 @@ class BodyContact:
         self.master_count = self.comm.allreduce(len(facets), op=MPI.SUM)
         if self.master_count == 0:
             raise ValueError(f"surface: {self.master!r} has no facet")
+
+    def _leave_shared(self) -> None:
+        """Leave out of this pair and of every earlier sliding pair of the problem the slave nodes the two share: a
+        node tied by sliding springs to two surfaces (the fat's nodes on the rim of the face two touching muscles
+        share, tied to both muscles) follows neither; the muscles' own contact holds them together there.
+        Collective."""
+        for other in self.problem.couplings:
+            if not (isinstance(other, BodyContact) and other.kind == "sliding" and other.leave_shared):
+                continue
+            both = np.intersect1d(self.slave_blocks, other.slave_blocks)
+            count = int(self.comm.allreduce(len(both), op=MPI.SUM))
+            if count == 0:
+                continue
+            for pair in (self, other):
+                pair.slave_blocks = np.setdiff1d(pair.slave_blocks, both).astype(np.int32)
+                pair.left_out += count
+                if pair.Pi is not None:  # paired before: pair again
+                    pair._stamp = None
+            if other.q_of_block is not None:
+                other.slave_q = other.q_of_block[other.slave_blocks]
+            log.info("%s and %s: %d slave nodes tied to both left out of both", self.name, other.name, count)
+
+    def potential_reason(self) -> str | None:
+        """Why the residual is not the derivative of the pair's energy, or None (ElasticityProblem.potential_reason).
+        With smoothed normals it is not: the lagged slip of x* along T changes g = N . (x_s - x*) by the tangential
+        part of N (N is not T's normal), which R = k g N leaves out, so R is not dPi_c/du, and a line search on the
+        total potential can fail along a Newton direction that does not descend it (the touching layered arm on
+        Debian 13's mesh: DIVERGED_LINE_SEARCH from the first step, however small); the solver then takes full
+        Newton steps (model.solvers.newton.default_line_search). With T's own normal, R is dPi_c/du where x* is
+        inside T (the gap is the distance to T's plane)."""
+        if self.smooth_normals:
+            return (f"the pair {self.name} uses smoothed normals: its residual is not the derivative of its energy "
+                    "(the slip of the closest point is lagged)")
+        return None
 
     def _gather_master(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every rank's master triangles: reference (m, 3, 3), current (m, 3, 3) and global block dofs (m, 3)."""

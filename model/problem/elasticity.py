@@ -53,8 +53,10 @@ comes from an energy: the materials, dead tractions and body forces, and add_ene
 penalties, augmented Lagrangian contact at fixed multipliers). Then Newton's problem is the minimisation of Pi
 over the displacements that satisfy the Dirichlet conditions, and Pi is the merit function of a line search
 (model.solvers.newton). There is none with a follower pressure (no potential), with residual terms added with
-add_residual (inertia and damping of a time integrator, added as residuals; docs/solvers.md), or in the mixed
-formulation, whose Pi(u, p) is a saddle (W + p g - p^2 / (2 kappa) is maximised in p), not a minimum.
+add_residual (inertia and damping of a time integrator, added as residuals; docs/solvers.md), in the mixed
+formulation, whose Pi(u, p) is a saddle (W + p g - p^2 / (2 kappa) is maximised in p), not a minimum, or with a
+coupling whose residual is not the derivative of its energy (its ``potential_reason()``: sliding between bodies
+with smoothed normals, model.problem.body_contact).
 """
 
 from __future__ import annotations
@@ -521,6 +523,10 @@ class ElasticityProblem:
             return f"the follower pressure on {', '.join(repr(b) for b in self.follower_pressures)} has no potential"
         if self.residual_terms:
             return "residual terms without a potential (inertia, damping) were added"
+        for coupling in self.couplings:  # contact between bodies whose residual is not its energy's derivative
+            reason = getattr(coupling, "potential_reason", lambda: None)()
+            if reason is not None:
+                return reason
         return None
 
     def total_potential(self) -> float:
