@@ -213,6 +213,33 @@ def test_an_interrupted_run_keeps_its_steps(shared_tmp: Path) -> None:
         assert sorted(p.name for p in out.glob("surface_*.vtu")) == ["surface_0001.vtu", "surface_0002.vtu"]
 
 
+def test_an_interrupted_growth_keeps_its_steps(shared_tmp: Path) -> None:
+    """A contact-fraction growth (the balloon into the cavity) stopped after its third equilibrium: Interrupted,
+    summary.json "interrupted" with those three steps (the same as the uninterrupted run's first three), the
+    surface of the third written."""
+    from model.experiments.membrane_run import run_membrane
+    from model.pipeline import Interrupted
+
+    cavity = {"obstacle": "sphere", "centre": [0.0, 0.0, 0.0], "radius": 1.1, "penalty": 1.0, "inside": True}
+    overrides = {"obstacle": [cavity], "inflation": {"contact_fraction": 0.5}, "output.vtu": False}
+    full = _run(shared_tmp, overrides, name="growth")
+    out = shared_tmp / "growth_interrupted"
+    with pytest.raises(Interrupted, match="interrupted by SIGTERM after pressure step 3") as caught:
+        run_membrane(load_membrane(BALLOON, overrides), out, MPI.COMM_WORLD, stop=_StopAfter(3))
+    assert caught.value.signum == signal.SIGTERM
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and len(summary["steps"]) == 3
+    assert len(full["steps"]) > 3
+    for mine, whole in zip(summary["steps"], full["steps"][:3], strict=True):
+        assert mine["pressure"] == pytest.approx(whole["pressure"], rel=1e-12)
+        assert mine["volume"] == pytest.approx(whole["volume"], rel=1e-12)
+    if MPI.COMM_WORLD.rank == 0:
+        with meshio.xdmf.TimeSeriesReader(out / "surface.xdmf") as reader:
+            reader.read_points_cells()
+            assert reader.num_steps == 1
+            assert reader.read_data(0)[0] == pytest.approx(summary["steps"][-1]["pressure"], rel=1e-12)
+
+
 @serial_only
 def test_sigterm_ends_a_membrane_run_cleanly(tmp_path: Path) -> None:
     """``python -m model run`` of a membrane file, SIGTERM once summary.json shows two steps: exit 143, status

@@ -41,7 +41,7 @@ from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_j
 from model.pipeline import Interrupted, StopFlag
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, hencky, radial_orientation
 from model.problem.membrane_contact import ObstacleContact
-from model.solvers.membrane import InflationStep, inflate, inflate_to_volume
+from model.solvers.membrane import InflationStep, InflationStopped, inflate, inflate_to_volume
 
 log = logging.getLogger(__name__)
 
@@ -119,9 +119,11 @@ def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.C
     SolveFailed (after writing the summary, status "failed") when Newton gives up. Collective.
 
     summary.json is rewritten after every pressure step of a ramp or list (status "running"), so a run that dies
-    keeps the steps it finished, next to their surfaces (each XDMF step is closed when written). SIGINT or SIGTERM
-    stop the run after the step it is solving (model.pipeline.StopFlag; ``stop``: any object whose
-    ``check(comm)`` returns the signal number, 0 for none): status "interrupted", then model.pipeline.Interrupted.
+    keeps the steps it finished, next to their surfaces (each XDMF step is closed when written); a volume or
+    contact-fraction growth rewrites it after every equilibrium it finds (growth, secant or bisection). SIGINT or
+    SIGTERM stop the run after the step it is solving (model.pipeline.StopFlag; ``stop``: any object whose
+    ``check(comm)`` returns the signal number, 0 for none): status "interrupted" (a growth's surface written at
+    its last equilibrium), then model.pipeline.Interrupted.
     """
     if stop is None:
         with StopFlag() as flag:
@@ -169,6 +171,14 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         if comm.rank == 0:
             write_json_atomic(out / SUMMARY, summary)
 
+    def interrupted(signum: int, count: int, pressure: float) -> Interrupted:
+        summary["contacts"] = [c.report() for c in contacts]
+        summary["status"] = "interrupted"
+        save()
+        comm.barrier()
+        return Interrupted(signum, f"interrupted by {signal.Signals(signum).name} after pressure step {count} "
+                                   f"(p = {pressure:.6g}); results in {out}")
+
     error = None
     try:
         pressures = inflation.ramp
@@ -180,17 +190,28 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
                 writer.write(p)
                 signum = stop.check(comm)
                 if signum:
-                    summary["contacts"] = [c.report() for c in contacts]
-                    summary["status"] = "interrupted"
-                    save()
-                    comm.barrier()
-                    raise Interrupted(signum, f"interrupted by {signal.Signals(signum).name} after pressure step "
-                                              f"{len(steps)} (p = {p:.6g}); results in {out}")
+                    raise interrupted(signum, len(steps), p)
                 save()
         else:
             dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
-            steps = inflate_to_volume(problem, inflation.volume, dp, max_steps=inflation.max_steps,
-                                      cutbacks=inflation.cutbacks, contact_fraction=inflation.contact_fraction)
+            signals = [0]
+
+            def on_step(step: InflationStep) -> bool:
+                # every equilibrium of the growth (its state is problem.u now): recorded and saved, and the
+                # signals checked between the steps
+                summary["steps"].append(_step_record(step, problem, config, law, rest_volume))
+                signals[0] = stop.check(comm)
+                if not signals[0]:
+                    save()
+                return bool(signals[0])
+
+            try:
+                steps = inflate_to_volume(problem, inflation.volume, dp, max_steps=inflation.max_steps,
+                                          cutbacks=inflation.cutbacks, contact_fraction=inflation.contact_fraction,
+                                          on_step=on_step)
+            except InflationStopped as stopped:
+                writer.write(stopped.steps[-1].pressure)
+                raise interrupted(signals[0], len(stopped.steps), stopped.steps[-1].pressure) from None
             # the last step is the state left in the problem; the others are recorded as they were found
             summary["steps"] = [_step_record(s, problem, config, law, rest_volume) for s in steps]
             for record in summary["steps"][:-1]:

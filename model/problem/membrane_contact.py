@@ -214,10 +214,18 @@ class MembranePairContact(_NodalContact):
     derives every term and the Newton solver (model.solvers.membrane) adds R += Pi^T dPi_c/dz and
     K += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi. The pairing (T, b) and n are found again before every residual and
     Jacobian (``update``) and held fixed in the derivatives (what is lagged: the normal's rotation and the slip
-    of x*). The master triangles are gathered on every rank (each rank pairs its own slave nodes)."""
+    of x*). The master triangles are gathered on every rank (each rank pairs its own slave nodes).
+
+    ``augmented``: Pi_c = int_slave (k/2) min(g - lambda/k, 0)^2 - lambda^2/(2k) dA with the multiplier lambda
+    >= 0 at the slave nodes (the contact pressure per reference area), updated by Uzawa between equilibria
+    (model.solvers.membrane.inflate), lambda <- max(lambda - k g, 0), as in ObstacleContact; the master's force
+    is Pi^T of the same derivative, so action = reaction holds for the multipliers too.
+
+    Newton (model.solvers.membrane.membrane_newton) uses the l2 line search here: backtracking on |R| took
+    steps of 0.1 for dozens of iterations at the first contact (the overshoot through the other membrane)."""
 
     def __init__(self, problem: MembraneProblem, slave: str, master: str, k: float, neighbours: int = 8,
-                 name: str | None = None) -> None:
+                 name: str | None = None, augmented: bool = False) -> None:
         if not (isinstance(k, (int, float)) and np.isfinite(k) and k > 0):
             raise ValueError(f"membrane contact: k must be a finite number > 0, got {k!r}")
         domain = problem.domain
@@ -241,7 +249,16 @@ class MembranePairContact(_NodalContact):
         X = ufl.SpatialCoordinate(msh)
         self.gap = ufl.dot(self.contact_normal, X + problem.u - self.X_star - self.z)
         dA = nodal_measure(problem, slave)
-        energy = penalty_energy(self.gap, self.k) * dA
+        # the augmented Lagrangian's multiplier at the slave nodes (a scalar P1 Function, as in ObstacleContact)
+        self.augmented = bool(augmented)
+        Q, to_v = V.sub(0).collapse()
+        self.multiplier = fem.Function(Q, name="contact_pressure")
+        q_of_block = np.full(len(problem.u.x.array) // 3, -1, dtype=np.int64)
+        q_of_block[np.asarray(to_v, dtype=np.int64) // 3] = np.arange(len(to_v))
+        self._q = q_of_block[self.slave_blocks]
+        psi = augmented_lagrangian_energy(self.gap, self.multiplier, self.k) if self.augmented \
+            else penalty_energy(self.gap, self.k)
+        energy = psi * dA
         v, w = ufl.TestFunction(V), ufl.TrialFunction(V)
         dz = ufl.derivative(energy, self.z, v)
         self._ufl = {"Rz": dz, "Kuz": ufl.derivative(ufl.derivative(energy, problem.u, v), self.z, w),
@@ -383,12 +400,12 @@ class MembranePairContact(_NodalContact):
         local = local[local < owned]
         glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
         C.zeroRowsColumns(glob.astype(PETSc.IntType), diag=0.0)
+        # C's owned rows added into A (new nonzeros allocated as the pairing brings them: about 80 ms a Jacobian
+        # at 2000 slave and master rows; MatAXPY with the union pattern is faster on dolfinx 0.5, 4.6 s against
+        # 6.3 s, but leaves a matrix that dolfinx 0.9's next assembly cannot use: DIVERGED_LINEAR_SOLVE)
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        start, end = C.getOwnershipRange()
-        for row in range(start, end):
-            cols, values = C.getRow(row)
-            if len(cols):
-                A.setValues(np.array([row], dtype=PETSc.IntType), cols, values, addv=PETSc.InsertMode.ADD_VALUES)
+        indptr, cols, values = C.getValuesCSR()  # the owned rows (A's layout), global columns
+        A.setValuesCSR(indptr, cols, values, addv=PETSc.InsertMode.ADD_VALUES)
         for m in (Kuz, Kzz, C1, C):
             m.destroy()
 
@@ -401,10 +418,27 @@ class MembranePairContact(_NodalContact):
                          self.reference[s] + u[s] - self.X_star.x.array.reshape(-1, 3)[s]
                          - self.z.x.array.reshape(-1, 3)[s])
 
+    def nodal_pressures(self) -> np.ndarray:
+        """The contact pressure per reference area at the owned slave nodes, max(lambda - k g, 0) (lambda = 0
+        for the plain penalty). Collective."""
+        lam = self.multiplier.x.array[self._q] if self.augmented else 0.0
+        return np.asarray(contact_pressure(self.nodal_gaps(), float(self.k.value), lam))
+
     def touching(self) -> np.ndarray:
         mask = np.zeros(self.n_owned, dtype=bool)
-        mask[self.slave_blocks] = self.nodal_gaps() < 0.0
+        mask[self.slave_blocks] = self.nodal_pressures() > 0.0
         return mask
+
+    def uzawa_residual(self) -> float:
+        """max over the slave nodes of |min(g, lambda/k)|: 0 at the exact contact solution. Collective."""
+        lam = self.multiplier.x.array[self._q]
+        local = np.abs(np.minimum(self.nodal_gaps(), lam / float(self.k.value)))
+        return float(self.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX))
+
+    def update_multiplier(self) -> None:
+        """Uzawa: lambda_i <- max(lambda_i - k g_i, 0) at the slave nodes. Collective (ghosts updated)."""
+        self.multiplier.x.array[self._q] = self.nodal_pressures()
+        self.multiplier.x.scatter_forward()
 
     def report(self) -> dict[str, Any]:
         """max_penetration (max(0, -min g)), force on the slave (-dPi_c/du at fixed z, summed), force on the
@@ -415,7 +449,8 @@ class MembranePairContact(_NodalContact):
         master = -np.asarray(self.comm.allreduce(out.array_r.reshape(-1, 3).sum(axis=0), op=MPI.SUM))
         out.destroy()
         lumped = self.lumped_area[self.slave_blocks]
+        active = self.nodal_pressures() > 0.0
         return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
                 "master_force": [float(f) for f in master],
-                "contact_fraction": _area_fraction(self.comm, lumped, g < 0.0),
-                "active_points": self.comm.allreduce(int(np.sum(g < 0.0)), op=MPI.SUM)}
+                "contact_fraction": _area_fraction(self.comm, lumped, active),
+                "active_points": self.comm.allreduce(int(np.sum(active)), op=MPI.SUM)}
