@@ -42,9 +42,9 @@ MESH = {"size": 0.015, "turn_elements": 8}
 
 
 def test_the_example_is_the_experiments_layered_run() -> None:
-    """examples/layered_arm_flexion.toml is flexion_config(layered=True) at its mesh size (one source of truth)."""
+    """examples/layered_arm_flexion.toml is the layered run of these tests, flexion_config(layered=True)."""
     shipped = load(EXAMPLES / "layered_arm_flexion.toml")
-    built = flexion_config(True, 15.0, size=0.015, turn_elements=8, steps=3)
+    built = flexion_config(True, ANGLE, steps=STEPS, **MESH)
     for key in ("mesh", "discretization", "materials", "boundaries", "bones", "contacts", "loading", "petsc_options"):
         assert getattr(shipped, key) == getattr(built, key), key
 
