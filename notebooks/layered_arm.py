@@ -195,3 +195,117 @@ if plt is not None:
 # them (their fibres shorten towards the middle of the belly) and the skin bulges more; free to slide, the
 # muscles shorten under the fat (the slip is mostly axial, largest on the fully active muscle a, on either side
 # of its middle), and the skin's bulge is about 60 % of the glued one (docs/layers.md has the table).
+
+# %% [markdown]
+# ## Elbow flexion on capsule bones
+#
+# `examples/layered_arm_flexion.toml` puts the same arms on two capsule bones, as `examples/arm_flexion.toml`
+# does for one muscle: a stationary humerus behind the segment (1 mm behind the skin), to which the proximal face
+# is attached, and a forearm turning forward about the elbow axis (the humerus' distal end), to which the distal
+# face is attached; the activations rise with the angle and the skin is in frictionless contact with the humerus.
+# The segment bends back onto the humerus and the muscles, in front of the elbow axis, shorten.
+# `model.experiments.layered_arm.flexion_raw` writes both configurations (layered: the example; conforming: the
+# same bones and loading on the glued mesh): the example's 10 degrees in 4 steps on the coarse mesh (15 mm), about
+# 30 s for both (beyond 15 degrees the layered run's Newton stalls: docs/layers.md).
+
+# %%
+from model.config import parse  # noqa: E402
+from model.experiments.layered_arm import flexion_bones, flexion_raw  # noqa: E402
+
+ANGLE = 10.0
+flexion = {}
+for name, layered in (("conforming", False), ("layered", True)):
+    raw = flexion_raw(layered, ANGLE, steps=4, size=0.015, turn_elements=8)
+    raw["output"] = {"png": False, "xdmf": False, "vtu": True}
+    flexion[name] = model.run(parse(raw), out=OUT / f"flexion_{name}")
+    s = flexion[name].summary
+    steps = [step for step in s["steps"] if step["converged"]]
+    pairs = steps[-1].get("contact_pairs", {})  # the humerus' push: the summed contact force minus the pairs'
+    bone = np.asarray(steps[-1]["contact"]["force"]) - sum((np.asarray(r["force"]) for r in pairs.values()), 0.0)
+    print(f"{name}: {s['cells']} cells, Newton iterations {[st['newton_iterations'] for st in steps]}, "
+          f"{s['wall_time_s']:.1f} s; the humerus' push on the skin {np.round(bone, 2)} N")
+    for pair, report in steps[-1].get("contact_pairs", {}).items():
+        print(f"  {pair:24s} {report['kind']:8s} normal force {report['normal_force']:8.2f} N, gap "
+              f"{1e6 * report['max_gap']:6.2f} um, penetration {1e6 * report['max_penetration']:6.2f} um")
+
+
+# %%
+def plane_segments(points, u, tets, value, axis=0):
+    """The segments where the plane x[axis] = value cuts the boundary triangles of ``tets``: (n, 2, 3) reference
+    points and displacements."""
+    faces = np.sort(tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3), axis=1)
+    unique, count = np.unique(faces, axis=0, return_counts=True)
+    X_out, u_out = [], []
+    for tri in unique[count == 1]:
+        d = points[tri, axis] - value
+        if d.min() >= 0 or d.max() <= 0:
+            continue
+        ends_X, ends_u = [], []
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            if d[i] * d[j] < 0:
+                s = d[i] / (d[i] - d[j])
+                ends_X.append(points[tri[i]] + s * (points[tri[j]] - points[tri[i]]))
+                ends_u.append(u[tri[i]] + s * (u[tri[j]] - u[tri[i]]))
+        if len(ends_X) == 2:
+            X_out.append(ends_X)
+            u_out.append(ends_u)
+    return np.array(X_out), np.array(u_out)
+
+
+def capsule_outline(a, b, r, n=40):
+    """The outline of a capsule's projection on the (z, y) plane (a and b in the plane x = 0)."""
+    a, b = np.asarray(a)[[2, 1]], np.asarray(b)[[2, 1]]
+    d = (b - a) / np.linalg.norm(b - a)
+    normal = np.array([-d[1], d[0]])
+    phi = np.linspace(-np.pi / 2, np.pi / 2, n)
+    cap_b = b + r * (np.outer(np.cos(phi), d) + np.outer(np.sin(phi), normal))
+    cap_a = a + r * (np.outer(np.cos(phi), -d) + np.outer(np.sin(phi), -normal))
+    return np.vstack([cap_b, cap_a, cap_b[:1]])
+
+
+X_PLANE = -0.012  # muscle a's axis
+if plt is not None:
+    from matplotlib.collections import LineCollection
+
+    fig, ax = plt.subplots(figsize=(11, 6))
+    bones = flexion_bones(ANGLE)
+    hinge = bones[1]["hinge"]
+    from forms.motions import HingeMotion
+
+    Q, c = HingeMotion(hinge["axis"], hinge["point"], hinge["angles"])(1.0)
+    for bone, (a, b) in zip(bones, ((bones[0]["a"], bones[0]["b"]),
+                                    (bones[1]["a"], Q @ np.array([0.0, bones[1]["a"][1], 0.22]) + c))):
+        outline = capsule_outline(a, b, bone["radius"])
+        ax.fill(1e3 * outline[:, 0], 1e3 * outline[:, 1], color="0.85", zorder=0)
+        ax.text(1e3 * 0.5 * (a[2] + b[2]), 1e3 * 0.5 * (a[1] + b[1]), bone["name"], ha="center", va="center",
+                fontsize=8)
+    for name, ls in (("conforming", "--"), ("layered", "-")):
+        data = last_vtu(flexion[name])
+        tets, U = data.cells_dict["tetra"], data.point_data["u"]
+        activation = data.cell_data["activation"][0][:, 0]
+        for part, cells, colour in (("outline", tets, "black"), ("a", tets[activation > 0.99], "C3")):
+            X, uu = plane_segments(data.points, U, cells, X_PLANE)
+            if part == "outline":  # the skin and the end faces, not the interfaces of the layered mesh
+                mid = X.mean(axis=1)
+                keep = (np.hypot(mid[:, 0], mid[:, 1]) > 0.026) | (mid[:, 2] < 1e-9) | (mid[:, 2] > 0.12 - 1e-9)
+                X, uu = X[keep], uu[keep]
+            x = X + uu
+            lines = LineCollection(1e3 * x[:, :, [2, 1]], colors=colour, linestyles=ls, linewidths=1.2,
+                                   label=f"{name}: {'skin' if part == 'outline' else 'muscle a'}")
+            ax.add_collection(lines)
+    ax.set_aspect("equal")
+    ax.autoscale()
+    ax.set_xlabel("z (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(f"flexion {ANGLE:.0f} degrees, the plane x = {1e3 * X_PLANE:.0f} mm (muscle a's axis), true "
+                 "displacements")
+    ax.legend(fontsize=8, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(OUT / "layered_arm_flexion.png", dpi=90)
+    print("wrote", OUT / "layered_arm_flexion.png")
+
+# %% [markdown]
+# The plane through muscle a's axis: the humerus behind (below; its projection: the skin touches it on the line
+# x = 0, 2.5 mm further back than this plane's skin), the forearm turned by 10 degrees about the elbow axis (the
+# humerus' distal end); the layered arm solid, the conforming one dashed. The numbers of both runs (bulge,
+# skin displacement, slip, the pairs' and the humerus' forces) are in docs/layers.md.

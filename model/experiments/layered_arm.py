@@ -19,6 +19,18 @@ mean; the skin's displacement at every skin node (both meshes have the same skin
 each muscle, |u_fat - u_muscle| between the two copies of each interface node (zero by construction when glued);
 and per contact pair its report (force on the slave body, penetration, gap, active points) and the smallest
 gap between the muscles.
+
+The elbow flexion (examples/layered_arm_flexion.toml; :func:`flexion_config`, :func:`compare_flexion`): the same
+arms on two capsule bones. The humerus, a stationary capsule of radius 10 mm, lies behind the segment, parallel to
+it, 1 mm behind the skin (axis y = -41 mm, from z = -2 cm to the elbow at z = L); the forearm, a capsule from the
+elbow along +z, turns about the elbow axis (the x axis through the humerus' distal end point) by ``angle`` degrees
+forward (rotation about -x), ramped with the load factor t, while the muscles' activations rise with t (a to 1, b to
+0.3). The segment's proximal face (the muscles' origins and the fat's proximal face) is attached to the humerus,
+its distal face (the insertions and the fat's distal face) to the forearm: u = Q(t) X + c(t) - X. The skin is in
+frictionless penalty contact with the humerus (nodal rule). Measured as above, except that the bulge is the
+radial part of the mid-length skin nodes' displacement relative to their mean (the bending's translation of the
+section taken out), plus the humerus' contact (force on the arm, penetration, active nodes) and the reactions of
+the attached faces (each body's equilibrium).
 """
 
 from __future__ import annotations
@@ -35,7 +47,8 @@ from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PAIRS", "TOUCHING_PAIRS", "ArmResult", "arm_config", "compare_arms", "run_arm", "skin_difference"]
+__all__ = ["PAIRS", "TOUCHING_PAIRS", "ArmResult", "arm_config", "arm_raw", "compare_arms", "compare_flexion",
+           "flexion_bones", "flexion_config", "flexion_raw", "run_arm", "run_flexion", "skin_difference"]
 
 #: The segment's length (meshes.arm_segment's default; the bulge band is its middle fifth).
 LENGTH = 0.12
@@ -50,6 +63,14 @@ PAIRS = (("fat_on_a", "fat_cavity_a", "a_lateral", "sliding"),
          ("a_on_b", "a_lateral", "b_lateral", "contact"))
 
 
+#: The flexion's bones (:func:`flexion_bones`): the humerus' radius, its gap to the skin at rest, the forearm's radius.
+HUMERUS_RADIUS = 0.01
+BONE_GAP = 0.001
+FOREARM_RADIUS = 0.008
+#: The arm segment's radius (meshes.arm_segment's default).
+RADIUS = 0.03
+
+
 def _muscle(region: str, tendon: str, origin: str, insertion: str, activation: float) -> list[dict[str, Any]]:
     fibres = {"type": "laplace", "origin": origin, "insertion": insertion, "regions": [region, tendon]}
     return [{"region": region, "law": "muscle", "isotropic": "stvk", "E": 9.0e6, "nu": 0.45, "fibres": fibres,
@@ -61,6 +82,15 @@ def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, step
                k_sliding: float = 1e10, k_contact: float = 1e10, tolerance: float = 1e-6,
                activations: tuple[float, float] = (1.0, 0.3), touching: float | None = None,
                augmented: bool = True) -> RunConfig:
+    """:func:`arm_raw` checked: the RunConfig."""
+    return parse(arm_raw(layered, size, turn_elements, steps, k_sliding, k_contact, tolerance, activations, touching,
+                         augmented))
+
+
+def arm_raw(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: int = 4,
+            k_sliding: float = 1e10, k_contact: float = 1e10, tolerance: float = 1e-6,
+            activations: tuple[float, float] = (1.0, 0.3), touching: float | None = None,
+            augmented: bool = True) -> dict[str, Any]:
     """examples/arm_segment.toml (``layered`` False) or its layered twin examples/layered_arm.toml (the mesh
     generator layered_arm, its region names, the [[contact]] pairs :data:`PAIRS` with penalties ``k_sliding`` and
     ``k_contact``, the muscles' contact augmented to ``tolerance`` x size unless ``augmented`` is False), with
@@ -93,7 +123,52 @@ def arm_config(layered: bool, size: float = 0.008, turn_elements: int = 16, step
                           for _, slave, master, kind in (PAIRS if touching is None else TOUCHING_PAIRS)]
         # the lagged pairing converges linearly (model.problem.body_contact: the nodal normals)
         raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8}}
-    return parse(raw)
+    return raw
+
+
+def flexion_bones(angle: float) -> list[dict[str, Any]]:
+    """The [[bone]] tables of the flexion (module docstring): the humerus behind the segment (axis y = -(R + gap +
+    r_h), from z = -2 cm to the elbow at z = L) and the forearm (from the elbow along +z), turning by ``angle``
+    degrees about the elbow axis -x through the humerus' distal end point (forward: towards +y)."""
+    y = -(RADIUS + BONE_GAP + HUMERUS_RADIUS)
+    elbow = [0.0, y, LENGTH]
+    return [{"name": "humerus", "obstacle": "capsule", "a": [0.0, y, -0.02], "b": elbow, "radius": HUMERUS_RADIUS},
+            {"name": "forearm", "obstacle": "capsule", "a": elbow, "b": [0.0, y, LENGTH + 0.24],
+             "radius": FOREARM_RADIUS,
+             "hinge": {"axis": [-1.0, 0.0, 0.0], "point": elbow, "angles": [[0.0, 0.0], [1.0, float(angle)]]}}]
+
+
+def flexion_config(layered: bool, angle: float = 30.0, size: float = 0.015, turn_elements: int = 8, steps: int = 3,
+                   **kwargs: Any) -> RunConfig:
+    """:func:`flexion_raw` (its keyword arguments ``kwargs``) checked: the RunConfig."""
+    return parse(flexion_raw(layered, angle, size, turn_elements, steps, **kwargs))
+
+
+def flexion_raw(layered: bool, angle: float = 30.0, size: float = 0.015, turn_elements: int = 8, steps: int = 3,
+                k_sliding: float = 1e10, k_contact: float = 1e10, k_bone: float = 1e10,
+                tolerance: float = 1e-6, activations: tuple[float, float] = (1.0, 0.3),
+                petsc_options: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The elbow flexion by ``angle`` degrees of the conforming (``layered`` False) or the layered arm
+    (examples/layered_arm_flexion.toml; module docstring): :func:`arm_config`'s materials, activations and (layered)
+    pairs, with the segment's end faces attached to the bones :func:`flexion_bones` instead of clamped, and the
+    skin in frictionless penalty contact (``k_bone``, nodal rule) with the humerus; ``petsc_options`` are added to
+    the solver's."""
+    raw = arm_raw(layered, size, turn_elements, steps, k_sliding, k_contact, tolerance, activations)
+    prefix = "fat_" if layered else ""
+    raw["bone"] = flexion_bones(angle)
+    raw["boundary"] = [{"on": on, "type": "attached", "bone": bone}
+                       for on, bone in ((f"{prefix}proximal", "humerus"), ("a_origin", "humerus"),
+                                        ("b_origin", "humerus"), (f"{prefix}distal", "forearm"),
+                                        ("a_insertion", "forearm"), ("b_insertion", "forearm"))]
+    raw["contact"] = [*raw.get("contact", []),
+                      {"surface": f"{prefix}skin", "bone": "humerus", "method": "penalty", "penalty": k_bone,
+                       "quadrature_degree": "vertex"}]
+    # the l2 line search (on the residual's norm): the default, backtracking on the total potential, fails now and
+    # then where the lagged sliding pairs' step is no descent direction, at round-off-dependent steps (1 and 2
+    # ranks cut back at different loads: 33 s and 190 s); with l2 neither cuts back
+    raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8, "snes_linesearch_type": "l2",
+                                       **(petsc_options or {})}}
+    return raw
 
 
 def _nodes_on(problem: ElasticityProblem, boundary: str) -> tuple[np.ndarray, np.ndarray]:
@@ -133,12 +208,19 @@ class ArmResult:
     muscle_gap: float = float("nan")
     reactions: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: float = 0.0
+    angle: float = 0.0
+    bone: dict[str, Any] = field(default_factory=dict)
+    distal_X: np.ndarray | None = None
+    distal_u: np.ndarray | None = None
 
 
-def _bulge(X: np.ndarray, u: np.ndarray) -> tuple[float, float]:
+def _bulge(X: np.ndarray, u: np.ndarray, relative: bool = False) -> tuple[float, float]:
+    """max and mean over the skin nodes of the middle fifth of u_r = u . (X, Y) / |(X, Y)|; ``relative``: of
+    (u - mean u) . (X, Y) / |(X, Y)|, the mean over those nodes (the section's translation) taken out."""
     middle = np.abs(X[:, 2] - 0.5 * LENGTH) <= 0.1 * LENGTH
     radial = X[middle, :2] / np.linalg.norm(X[middle, :2], axis=1, keepdims=True)
-    ur = np.einsum("ij,ij->i", u[middle, :2], radial)
+    um = u[middle, :2] - (u[middle, :2].mean(axis=0) if relative else 0.0)
+    ur = np.einsum("ij,ij->i", um, radial)
     return float(ur.max()), float(ur.mean())
 
 
@@ -157,6 +239,27 @@ def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: 
             touching: float | None = None, augmented: bool = True) -> ArmResult:
     """Run the conforming (``layered`` False) or the layered arm to full activation and measure it (module
     docstring; ``activations``, ``touching`` and ``augmented``: :func:`arm_config`). Collective."""
+    config = arm_config(layered, size, turn_elements, steps, k_sliding, k_contact, activations=activations,
+                        touching=touching, augmented=augmented)
+    return _run(config, layered, PAIRS if touching is None else TOUCHING_PAIRS, steps, comm)
+
+
+def run_flexion(layered: bool, angle: float = 30.0, size: float = 0.015, turn_elements: int = 8, steps: int = 3,
+                comm: MPI.Comm = MPI.COMM_WORLD, **kwargs: Any) -> ArmResult:
+    """Run the elbow flexion (:func:`flexion_config`, whose keyword arguments ``kwargs`` takes) of the conforming
+    or the layered arm and measure it (module docstring: the bulge relative to the section's mean displacement;
+    ``bone``: the humerus' contact report; ``reactions``: the attached faces'). Collective."""
+    config = flexion_config(layered, angle, size, turn_elements, steps, **kwargs)
+    result = _run(config, layered, PAIRS, steps, comm, flexion=True)
+    result.angle = float(angle)
+    return result
+
+
+def _run(config: RunConfig, layered: bool, names: tuple[tuple[str, str, str, str], ...], steps: int,
+         comm: MPI.Comm, flexion: bool = False) -> ArmResult:
+    """Build and solve ``config`` to load factor 1 in ``steps`` steps (cut back where Newton fails) and measure
+    it. ``names``: the layered run's pairs (the first contacts of ``config``, in order); ``flexion``: the last
+    contact is the humerus' and the bulge is relative to the band's mean displacement. Collective."""
     import time
 
     from model.pipeline import build, make_solver
@@ -164,11 +267,8 @@ def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: 
     from model.solvers.loadstepping import step_loads
 
     start = time.perf_counter()
-    config = arm_config(layered, size, turn_elements, steps, k_sliding, k_contact, activations=activations,
-                        touching=touching, augmented=augmented)
     setup = build(config, comm)
     problem = setup.problem
-    names = PAIRS if touching is None else TOUCHING_PAIRS
     pairs = {name: setup.contacts[i] for i, (name, *_) in enumerate(names)} if layered else {}
     solver = make_solver(problem, config, setup.contacts)
     records: list[Any] = []
@@ -176,22 +276,27 @@ def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: 
     iterations = [int(r.result.iterations) for r in records if r.result.converged]
     skin = "fat_skin" if layered else "skin"
     X, u = _nodes_on(problem, skin)
-    bulge_max, bulge_mean = _bulge(X, u)
+    bulge_max, bulge_mean = _bulge(X, u, relative=flexion)
     msh = problem.domain.mesh
     result = ArmResult(layered, msh.topology.index_map(3).size_global, problem.space.dofmap.index_map.size_global * 3,
                        bool(outcome.completed), iterations, X, u, bulge_max, bulge_mean)
-    if layered:
-        result.slip = {m: _slip(problem, f"fat_cavity_{m}", names[i][2]) for i, m in enumerate("ab")}
-        result.pairs = {name: pair.report() for name, pair in pairs.items()}
+    if layered or flexion:
         residual = solver.unconstrained_residual()
         result.reactions = {name: np.asarray(f) for name, f in reactions(problem, residual).items()}
         residual.destroy()
+    if layered:
+        result.slip = {m: _slip(problem, f"fat_cavity_{m}", names[i][2]) for i, m in enumerate("ab")}
+        result.pairs = {name: pair.report() for name, pair in pairs.items()}
         gaps = pairs["a_on_b"].nodal_gaps()
         result.muscle_gap = float(comm.allreduce(float(gaps.min(initial=np.inf)), op=MPI.MIN))
+    if flexion:
+        result.bone = setup.contacts[-1].contact_report()
+        result.distal_X, result.distal_u = _nodes_on(problem, "fat_distal" if layered else "distal")
     solver.destroy()
     result.seconds = time.perf_counter() - start
-    log.info("%s arm: %d cells, Newton %s, bulge max %.4g mean %.4g m in %.1f s",
-             "layered" if layered else "conforming", result.cells, iterations, bulge_max, bulge_mean, result.seconds)
+    log.info("%s arm%s: %d cells, Newton %s, bulge max %.4g mean %.4g m in %.1f s",
+             "layered" if layered else "conforming", " (flexion)" if flexion else "", result.cells, iterations,
+             bulge_max, bulge_mean, result.seconds)
     return result
 
 
@@ -209,3 +314,8 @@ def skin_difference(conforming: ArmResult, layered: ArmResult) -> dict[str, floa
 def compare_arms(**kwargs: Any) -> tuple[ArmResult, ArmResult]:
     """:func:`run_arm` conforming and layered with the same keyword arguments. Collective."""
     return run_arm(False, **kwargs), run_arm(True, **kwargs)
+
+
+def compare_flexion(**kwargs: Any) -> tuple[ArmResult, ArmResult]:
+    """:func:`run_flexion` conforming and layered with the same keyword arguments. Collective."""
+    return run_flexion(False, **kwargs), run_flexion(True, **kwargs)
