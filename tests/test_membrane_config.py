@@ -158,7 +158,7 @@ def test_discs_example_action_reaction_and_the_rigid_plane(shared_tmp: Path) -> 
     the slave's (to 1e-12), the contact starts at the second pressure; at the last the force lies between the
     rigid-plane forces (one disc against z = H/2 with penalty 2k, from a [membrane] disc config with an
     [[obstacle]] plane) of the two meshes, within 0.5 % of the slave mesh's (measured -3.8679e-3 against
-    -3.8534e-3, +0.38 %), and the penetration is below 2 p / k."""
+    -3.8534e-3, +0.38 %), and the penetration is below 2 p / k. The augmented Lagrangian leaves no penetration."""
     summary = _run_file(DISCS, shared_tmp / "discs")
     assert summary["status"] == "completed"
     steps = summary["steps"]
@@ -182,19 +182,18 @@ def test_discs_example_action_reaction_and_the_rigid_plane(shared_tmp: Path) -> 
     assert coarse > last["force"][2] > fine  # all negative: between the two meshes' rigid-plane forces
     assert abs(last["force"][2] / coarse - 1.0) < 5e-3
     assert abs(last["contact_fraction"] / planes[0.2]["contact_fraction"] - 1.0) < 0.12  # measured -10.6 %
-
-
-def test_discs_augmented_lagrangian_from_the_config(shared_tmp: Path) -> None:
-    """augmented = true with tolerance 1e-9: no penetration left (<= 1e-9), action = reaction, the force within
-    0.5 % of the penalty run's."""
+    # augmented = true (Uzawa to 1e-9), straight to the last pressure: no penetration left, action = reaction, the
+    # force between the rigid-plane forces too, 0.16 % from the penalty's (measured -3.8741e-3)
     pair = {"surface": "lower", "master": "upper", "penalty": 10.0, "augmented": True, "tolerance": 1e-9}
-    summary = _run_file(DISCS, shared_tmp / "discs_al", {"contact": [pair], "output.xdmf": False})
-    last = summary["steps"][-1]["pairs"][0]
-    assert last["max_penetration"] <= 1e-9
-    assert np.allclose(last["master_force"], -np.asarray(last["force"]), rtol=0, atol=1e-12)
-    assert last["force"][2] == pytest.approx(-3.87e-3, rel=5e-3)
-    assert summary["pairs"] == [{"name": "lower-upper", "surface": "lower", "master": "upper", "penalty": 10.0,
-                                 "augmented": True}]
+    augmented = _run_file(DISCS, shared_tmp / "discs_al", {"contact": [pair], "inflation.pressures": [6e-3],
+                                                          "output.xdmf": False})
+    assert augmented["pairs"] == [{"name": "lower-upper", "surface": "lower", "master": "upper",
+                                   "penalty": 10.0, "augmented": True}]
+    al = augmented["steps"][-1]["pairs"][0]
+    assert al["max_penetration"] <= 1e-9
+    assert np.allclose(al["master_force"], -np.asarray(al["force"]), rtol=0, atol=1e-12)
+    assert coarse > al["force"][2] > fine
+    assert abs(al["force"][2] / last["force"][2] - 1.0) < 5e-3
 
 
 _PAIR = {"surface": "lower", "master": "upper", "penalty": 10.0}
