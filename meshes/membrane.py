@@ -44,8 +44,8 @@ from meshes.data import MeshData
 from meshes.gingerbread import PlanarMeshData
 
 __all__ = ["SmoothedShape", "SurfaceMeshData", "close_with_base", "combine_surfaces", "disc_surface",
-           "enclosed_volume", "extrude", "orient_triangles", "smooth_rest_shape", "sphere_octant", "sphere_surface",
-           "surface_areas", "tetrahedralise", "vertex_normals"]
+           "enclosed_volume", "extrude", "facing_discs", "orient_triangles", "smooth_rest_shape", "sphere_octant",
+           "sphere_surface", "surface_areas", "tetrahedralise", "vertex_normals"]
 
 logger = logging.getLogger(__name__)
 
@@ -344,3 +344,18 @@ def combine_surfaces(bodies: dict[str, SurfaceMeshData]) -> SurfaceMeshData:
     return SurfaceMeshData(np.vstack(points), np.vstack(cells), np.concatenate(cell_tags),
                            np.vstack(facets) if facets else empty,
                            np.concatenate(facet_tags) if facet_tags else np.empty(0, np.int32), regions, boundaries)
+
+
+def facing_discs(radius: float = 1.0, gap: float = 0.5, size: float = 0.2, upper_size: float | None = None
+                 ) -> SurfaceMeshData:
+    """Two discs of ``radius`` facing each other, one mesh of two regions (combine_surfaces): ``lower`` in z = 0
+    (triangles of size ``size``, normal +z) and ``upper`` in z = ``gap`` (size ``upper_size``, default ``size``:
+    the mirror image of lower; normal -z, the triangles reversed); boundaries lower_rim and upper_rim."""
+    H = positive_float("facing_discs", "gap", gap)
+    lower = disc_surface(radius, size)
+    up = lower if upper_size is None else disc_surface(radius, upper_size)
+    points = up.points.copy()
+    points[:, 2] = H - points[:, 2]
+    upper = SurfaceMeshData(points, up.cells[:, [0, 2, 1]], up.cell_tags, up.facets, up.facet_tags,
+                            up.region_names, up.boundary_names)
+    return combine_surfaces({"lower": lower, "upper": upper})

@@ -7,6 +7,10 @@
 - the same balloon in a rigid cavity R_c = 1.1 stopped at half contact: the pressure just above the free
   balloon's p_m(R_c / R) (the contact starts there, the faceting spreads it over ~1 %);
 - Hencky's clamped disc (override surface = "disc"): centre deflection w0 = 0.6534 a (p a / (E h))^(1/3);
+- examples/membrane_discs.toml (two clamped discs on non-matching meshes inflated against each other,
+  [[contact]]): action = reaction of the pair at every step, and the force between the forces of one disc
+  against the rigid plane z = H/2 with penalty 2k (the symmetric equivalent, tests/test_membrane_contact.py) on
+  the two meshes, within 0.5 % of the slave mesh's; the augmented Lagrangian leaves no penetration;
 - bad input: one-line ConfigError naming the key, before any mesh or solve (the command line: exit code 2,
   nothing written).
 """
@@ -33,6 +37,7 @@ from model.config.reference import MEMBRANE_SCHEMA_FILE, membrane_schema_text
 from model.errors import ConfigError
 
 BALLOON = EXAMPLES / "membrane_balloon.toml"
+DISCS = EXAMPLES / "membrane_discs.toml"
 
 
 def _run(shared_tmp: Path, overrides: dict | None = None, name: str = "out") -> dict:
@@ -140,6 +145,86 @@ def test_schema_file_and_examples() -> None:
     bad = tomllib.loads(BALLOON.read_text())
     bad["membrane"]["thicknes"] = 0.1
     assert list(validator.iter_errors(bad))
+
+
+def _run_file(path: Path, out: Path, overrides: dict | None = None) -> dict:
+    from model.experiments.membrane_run import run_membrane
+
+    return run_membrane(load_membrane(path, overrides), out, MPI.COMM_WORLD)
+
+
+def test_discs_example_action_reaction_and_the_rigid_plane(shared_tmp: Path) -> None:
+    """Two discs (lower 0.2, upper 0.15, H = 0.8, k = 10) pressed together: per step the master's force is minus
+    the slave's (to 1e-12), the contact starts at the second pressure; at the last the force lies between the
+    rigid-plane forces (one disc against z = H/2 with penalty 2k, from a [membrane] disc config with an
+    [[obstacle]] plane) of the two meshes, within 0.5 % of the slave mesh's (measured -3.8679e-3 against
+    -3.8534e-3, +0.38 %), and the penetration is below 2 p / k. The augmented Lagrangian leaves no penetration."""
+    summary = _run_file(DISCS, shared_tmp / "discs")
+    assert summary["status"] == "completed"
+    steps = summary["steps"]
+    assert [s["pressure"] for s in steps] == pytest.approx([2e-3, 4e-3, 6e-3], rel=1e-12)
+    for step in steps:
+        (pair,) = step["pairs"]
+        assert np.allclose(pair["master_force"], -np.asarray(pair["force"]), rtol=0, atol=1e-12)
+        # the whole membrane's fraction counts both discs' area (equal areas): half the slave's
+        assert step["contact_fraction"] == pytest.approx(0.5 * pair["contact_fraction"], rel=0.05, abs=1e-12)
+    assert steps[0]["pairs"][0]["contact_fraction"] == 0.0 < steps[1]["pairs"][0]["contact_fraction"]
+    last = steps[-1]["pairs"][0]
+    assert summary["contacts"][0]["force"] == pytest.approx(last["force"], rel=1e-12)
+    assert 0.0 < last["max_penetration"] < 2 * 6e-3 / 10.0
+    planes = {}
+    for size in (0.2, 0.15):
+        plane = {"obstacle": "plane", "point": [0.0, 0.0, 0.4], "normal": [0.0, 0.0, -1.0], "penalty": 20.0}
+        overrides = {"membrane": {"surface": "disc", "radius": 1.0, "size": size, "law": "stvk", "young": 1.0,
+                                  "nu": 0.3, "thickness": 0.01, "bump": 0.3}, "contact": [], "obstacle": [plane]}
+        planes[size] = _run_file(DISCS, shared_tmp / f"plane_{size}", overrides)["contacts"][0]
+    coarse, fine = planes[0.2]["force"][2], planes[0.15]["force"][2]
+    assert coarse > last["force"][2] > fine  # all negative: between the two meshes' rigid-plane forces
+    assert abs(last["force"][2] / coarse - 1.0) < 5e-3
+    assert abs(last["contact_fraction"] / planes[0.2]["contact_fraction"] - 1.0) < 0.12  # measured -10.6 %
+    # augmented = true (Uzawa to 1e-9), straight to the last pressure: no penetration left, action = reaction, the
+    # force between the rigid-plane forces too, 0.16 % from the penalty's (measured -3.8741e-3)
+    pair = {"surface": "lower", "master": "upper", "penalty": 10.0, "augmented": True, "tolerance": 1e-9}
+    augmented = _run_file(DISCS, shared_tmp / "discs_al", {"contact": [pair], "inflation.pressures": [6e-3],
+                                                          "output.xdmf": False})
+    assert augmented["pairs"] == [{"name": "lower-upper", "surface": "lower", "master": "upper",
+                                   "penalty": 10.0, "augmented": True}]
+    al = augmented["steps"][-1]["pairs"][0]
+    assert al["max_penetration"] <= 1e-9
+    assert np.allclose(al["master_force"], -np.asarray(al["force"]), rtol=0, atol=1e-12)
+    assert coarse > al["force"][2] > fine
+    assert abs(al["force"][2] / last["force"][2] - 1.0) < 5e-3
+
+
+_PAIR = {"surface": "lower", "master": "upper", "penalty": 10.0}
+
+
+@pytest.mark.parametrize(("overrides", "message"), [
+    ({"contact": [{**_PAIR, "master": "lower"}]},
+     r"^contact\[0\]\.master: the same region as surface \('lower'\): a contact pairs two membranes$"),
+    ({"contact": [{**_PAIR, "surface": "lowr"}]},
+     r"^contact\[0\]\.surface: facing_discs has no region 'lowr' \(regions: lower, upper\)$"),
+    ({"contact": [{**_PAIR, "master": "uper"}]}, r"^contact\[0\]\.master: facing_discs has no region 'uper'"),
+    ({"contact": [{**_PAIR, "penalty": -1.0}]}, r"^contact\[0\]\.penalty: -1\.0 is out of range, must be > 0$"),
+    ({"contact": [{**_PAIR, "penalty": "stiff"}]}, r"^contact\[0\]\.penalty: "),
+    ({"contact": [{**_PAIR, "tolerance": 1e-6}]}, r"^contact\[0\]\.tolerance: only applies with augmented"),
+    ({"contact": [{**_PAIR, "slave": "lower"}]}, r"^contact\[0\]\.slave: unknown key"),
+    ({"membrane.gap": None}, r"^membrane\.gap: missing"),
+    ({"membrane.upper_size": 0.0}, r"^membrane\.upper_size: 0\.0 is out of range, must be > 0$"),
+])
+def test_bad_contact_names_the_key(overrides: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message) as err:
+        load_membrane(DISCS, overrides)
+    assert "\n" not in str(err.value)
+
+
+def test_contact_needs_two_membranes() -> None:
+    """[[contact]] on a surface of one membrane (the balloon), gap on the octant."""
+    with pytest.raises(ConfigError, match=r"^contact\[0\]\.surface: sphere_octant has no region 'lower' \(no "
+                                          r"regions: membrane-membrane contact needs surface = 'facing_discs'\)$"):
+        load_membrane(BALLOON, {"contact": [_PAIR]})
+    with pytest.raises(ConfigError, match=r"^membrane\.gap: only applies to surface = 'facing_discs', not "):
+        load_membrane(BALLOON, {"membrane.gap": 0.5})
 
 
 def test_a_failed_solve_is_recorded(shared_tmp: Path) -> None:

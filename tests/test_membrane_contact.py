@@ -10,10 +10,10 @@ from forms.membrane import MembraneNeoHookean, MembraneStVK
 from forms.obstacles import Capsule, Plane, Sphere
 from meshes.membrane import (
     SurfaceMeshData,
-    combine_surfaces,
     disc_surface,
     enclosed_volume,
     extrude,
+    facing_discs,
     smooth_rest_shape,
     sphere_octant,
     vertex_normals,
@@ -212,15 +212,9 @@ def test_two_phase_inflation_against_a_bone():
 
 
 def _facing_discs(H: float, lower_size: float = 0.2, upper_size: float | None = None) -> SurfaceMeshData:
-    """Two clamped unit discs: ``lower`` on z = 0 (normal +z) and ``upper`` on z = H (normal -z, the triangles
-    reversed; the mirror image of ``lower`` unless it has a size of its own), one mesh of two regions."""
-    lower = disc_surface(1.0, lower_size)
-    up = lower if upper_size is None else disc_surface(1.0, upper_size)
-    points = up.points.copy()
-    points[:, 2] = H - points[:, 2]
-    upper = SurfaceMeshData(points, up.cells[:, [0, 2, 1]], up.cell_tags, up.facets, up.facet_tags,
-                            up.region_names, up.boundary_names)
-    return combine_surfaces({"lower": lower, "upper": upper})
+    """Two clamped unit discs (meshes.membrane.facing_discs): ``lower`` on z = 0 (normal +z) and ``upper`` on
+    z = H (normal -z, the triangles reversed; the mirror image of ``lower`` unless it has a size of its own)."""
+    return facing_discs(1.0, H, lower_size, upper_size)
 
 
 def _pressed_discs(H: float, bump: float, lower_size: float = 0.2, upper_size: float | None = None

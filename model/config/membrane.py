@@ -13,6 +13,8 @@ pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig):
                    touches the obstacles (model.solvers.membrane.inflate / inflate_to_volume)
     [[obstacle]]   rigid obstacles (plane, sphere, capsule: the keys of [[bone]] shapes) with a penalty
                    (model.problem.membrane_contact.ObstacleContact)
+    [[contact]]    membrane-membrane contact between two regions of the surface (facing_discs: lower, upper),
+                   penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact)
     [output]       folder, XDMF and VTU of the deformed surface
     [units]        labels only
 
@@ -50,7 +52,11 @@ from model.errors import ConfigError
 SURFACES: dict[str, dict[str, Any]] = {
     "sphere_octant": {"boundaries": ("x0", "y0", "z0"), "fixed": {"x0": [0], "y0": [1], "z0": [2]}},
     "disc": {"boundaries": ("rim",), "fixed": {"rim": [0, 1, 2]}},
+    "facing_discs": {"boundaries": ("lower_rim", "upper_rim"), "regions": ("lower", "upper"),
+                     "fixed": {"lower_rim": [0, 1, 2], "upper_rim": [0, 1, 2]}},
 }
+#: the surfaces' own keys (others refuse them)
+SURFACE_KEYS = {"bump": ("disc", "facing_discs"), "gap": ("facing_discs",), "upper_size": ("facing_discs",)}
 #: each law's parameters besides thickness
 LAW_PARAMETERS = {"stvk": ("young", "nu"), "neo_hookean": ("mu",)}
 
@@ -60,12 +66,20 @@ Component = Annotated[Integer, Field(ge=0, le=2)]
 class MembraneSection(Section):
     """[membrane]: the surface, its law and its Dirichlet border."""
 
-    surface: Literal["sphere_octant", "disc"] = key(
+    surface: Literal["sphere_octant", "disc", "facing_discs"] = key(
         "the surface generator (meshes.membrane): \"sphere_octant\" (x, y, z >= 0 of the sphere |x| = radius, "
-        "boundaries x0, y0, z0 on the symmetry planes: the closed balloon by symmetry) or \"disc\" (x^2 + y^2 <= "
-        "radius^2 in z = 0, boundary rim)")
-    radius: Positive = key("radius of the sphere or the disc", "m (length)", default=1.0)
-    size: Positive = key("largest triangle edge of the surface mesh", "m (length)", default=0.2)
+        "boundaries x0, y0, z0 on the symmetry planes: the closed balloon by symmetry), \"disc\" (x^2 + y^2 <= "
+        "radius^2 in z = 0, boundary rim) or \"facing_discs\" (two membranes of one mesh, meshes.membrane."
+        "facing_discs: region lower, the disc in z = 0 with normal +z, and region upper, the disc in z = gap with "
+        "normal -z; boundaries lower_rim, upper_rim; inflated towards each other, for [[contact]])")
+    radius: Positive = key("radius of the sphere or the disc(s)", "m (length)", default=1.0)
+    size: Positive = key("largest triangle edge of the surface mesh (facing_discs: of the lower disc)",
+                         "m (length)", default=0.2)
+    gap: Positive | None = key("surface = \"facing_discs\": the distance H between the two discs' planes",
+                               "m (length)", default=None)
+    upper_size: Positive | None = key("surface = \"facing_discs\": largest triangle edge of the upper disc "
+                                      "(default: size; another size gives non-matching meshes)", "m (length)",
+                                      default=None)
     law: Literal["stvk", "neo_hookean"] = key(
         "\"stvk\" (plane-stress St Venant-Kirchhoff: young, nu, thickness) or \"neo_hookean\" (incompressible "
         "neo-Hookean membrane: mu, thickness)")
@@ -77,8 +91,9 @@ class MembraneSection(Section):
     fixed: dict[Name, Annotated[tuple[Component, ...], Field(min_length=1)]] | None = key(
         "the Dirichlet border: boundary name -> displacement components held at 0 (default: sphere_octant "
         "{x0 = [0], y0 = [1], z0 = [2]} (symmetry), disc {rim = [0, 1, 2]} (clamped))", default=None)
-    bump: NonNegative = key("disc only: Newton starts from the paraboloid u_z = bump radius (1 - r^2/radius^2) "
-                            "(a flat membrane has no transverse stiffness); the equilibria do not depend on it",
+    bump: NonNegative = key("disc, facing_discs: Newton starts from the paraboloid u_z = bump radius (1 - "
+                            "r^2/radius^2) (facing_discs: each disc towards the other; a flat membrane has no "
+                            "transverse stiffness); the equilibria do not depend on it",
                             "dimensionless", default=0.05)
     quadrature_degree: Annotated[Integer, Field(ge=1)] = key("quadrature degree of the membrane energy",
                                                               default=2)
@@ -96,9 +111,17 @@ class MembraneSection(Section):
         for name in self.fixed or {}:
             if name not in known:
                 fail(f"{self.surface} has no boundary {name!r} (boundaries: {', '.join(known)})", "fixed", name)
-        if "bump" in self.model_fields_set and self.surface != "disc":
-            fail(f"only applies to surface = 'disc', not {self.surface!r}", "bump")
+        for k, surfaces in SURFACE_KEYS.items():
+            if k in self.model_fields_set and self.surface not in surfaces:
+                fail(f"only applies to surface = {' or '.join(map(repr, surfaces))}, not {self.surface!r}", k)
+        if self.surface == "facing_discs" and self.gap is None:
+            fail("missing (surface = 'facing_discs' needs the distance between the discs)", "gap")
         return self
+
+    @property
+    def regions(self) -> tuple[str, ...]:
+        """The surface's named membranes (cell regions), for [[contact]]."""
+        return tuple(SURFACES[self.surface].get("regions", ()))
 
     @property
     def border(self) -> dict[str, tuple[int, ...]]:
@@ -199,6 +222,35 @@ class ObstacleSection(Section):
                                   "validation the obstacle itself")
 
 
+class ContactSection(Section):
+    """[[contact]]: penalty contact between two membranes of the surface (two regions, e.g. facing_discs' lower
+    and upper): the ``surface`` region's nodes stay on the side of the ``master`` region its normal points to
+    (model.problem.membrane_contact.MembranePairContact; one pass: pick the finer mesh as ``surface``)."""
+
+    name: Name | None = key("a name for the summary (default: \"<surface>-<master>\")", default=None)
+    surface: Name = key("the slave region: its nodes are checked against the master's triangles")
+    master: Name = key("the master region: its deformed triangles are the contact surface")
+    penalty: Positive = key("the penalty stiffness k, per unit reference area and unit penetration (g counts both "
+                            "membranes' penetrations)", "Pa/m (stress per length)")
+    augmented: Flag = key("augmented Lagrangian: Uzawa updates of the slave nodes' contact pressure after each "
+                          "equilibrium until max |min(g, lambda/k)| <= tolerance", default=False)
+    tolerance: Positive | None = key("augmented only: the Uzawa tolerance on max |min(g, lambda/k)| (default "
+                                     "1e-9; with several contacts the smallest)", "m (length)", default=None)
+
+    @model_validator(mode="after")
+    def _pair(self) -> ContactSection:
+        if self.master == self.surface:
+            fail(f"the same region as surface ({self.surface!r}): a contact pairs two membranes", "master")
+        if self.tolerance is not None and not self.augmented:
+            fail("only applies with augmented = true", "tolerance")
+        return self
+
+    @property
+    def label(self) -> str:
+        """The name in summary.json."""
+        return self.name or f"{self.surface}-{self.master}"
+
+
 class MembraneOutput(Section):
     """[output]: the results folder (summary.json is always written) and the deformed surface's files."""
 
@@ -217,14 +269,30 @@ class MembraneRunConfig(Section):
     inflation: InflationSection = key("the pressure path: a ramp, a list, or growth to a volume or contact "
                                       "fraction")
     obstacles: tuple[ObstacleSection, ...] = key("rigid obstacles with a penalty", default=(), alias="obstacle")
+    contacts: tuple[ContactSection, ...] = key("membrane-membrane contacts (two regions of the surface)",
+                                               default=(), alias="contact")
     output: MembraneOutput = key("results folder and files", default_factory=MembraneOutput)
     units: UnitsConfig = key("the system of units the numbers are in (labels only)", default_factory=UnitsConfig)
 
     @model_validator(mode="after")
     def _across(self) -> MembraneRunConfig:
-        if self.inflation.contact_fraction is not None and not self.obstacles:
-            fail("needs an [[obstacle]] to touch", "inflation", "contact_fraction")
+        if self.inflation.contact_fraction is not None and not (self.obstacles or self.contacts):
+            fail("needs an [[obstacle]] or a [[contact]] to touch", "inflation", "contact_fraction")
+        regions = self.membrane.regions
+        for i, contact in enumerate(self.contacts):
+            for k in ("surface", "master"):
+                name = getattr(contact, k)
+                if name not in regions:
+                    known = f"regions: {', '.join(regions)}" if regions else \
+                        "no regions: membrane-membrane contact needs surface = 'facing_discs'"
+                    fail(f"{self.membrane.surface} has no region {name!r} ({known})", "contact", i, k)
         return self
+
+    @property
+    def uzawa_tolerance(self) -> float:
+        """The Uzawa tolerance of the augmented contacts: the smallest given, default 1e-9."""
+        given = [c.tolerance for c in self.contacts if c.tolerance is not None]
+        return float(min(given)) if given else 1e-9
 
     @property
     def document(self) -> dict[str, Any] | None:
@@ -260,5 +328,6 @@ def load_membrane(path: str | Path, overrides: dict[str, Any] | None = None) -> 
     return parse_membrane(raw, path.parent)
 
 
-__all__ = ["LAW_PARAMETERS", "SURFACES", "InflationSection", "MembraneOutput", "MembraneRunConfig", "MembraneSection",
-           "ObstacleSection", "is_membrane", "load_membrane", "parse_membrane"]
+__all__ = ["ContactSection", "InflationSection", "LAW_PARAMETERS", "MembraneOutput", "MembraneRunConfig",
+           "MembraneSection", "ObstacleSection", "SURFACES", "SURFACE_KEYS", "is_membrane", "load_membrane",
+           "parse_membrane"]

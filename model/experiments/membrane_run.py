@@ -32,7 +32,7 @@ import numpy as np
 from mpi4py import MPI
 
 from forms.membrane import MembraneLaw, membrane_law
-from meshes.membrane import SurfaceMeshData, disc_surface, sphere_octant
+from meshes.membrane import SurfaceMeshData, disc_surface, facing_discs, sphere_octant
 from model.config.membrane import MembraneRunConfig
 from model.domain.distribute import build_domain
 from model.errors import SolveFailed
@@ -40,7 +40,7 @@ from model.experiments.membrane import deformed_points
 from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_json_atomic
 from model.pipeline import Interrupted, StopFlag
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, hencky, radial_orientation
-from model.problem.membrane_contact import ObstacleContact
+from model.problem.membrane_contact import MembranePairContact, ObstacleContact
 from model.solvers.membrane import InflationStep, InflationStopped, inflate, inflate_to_volume
 
 log = logging.getLogger(__name__)
@@ -50,7 +50,27 @@ __all__ = ["run_membrane"]
 
 def _surface(config: MembraneRunConfig) -> SurfaceMeshData:
     m = config.membrane
+    if m.surface == "facing_discs":
+        return facing_discs(m.radius, m.gap, m.size, m.upper_size)
     return sphere_octant(m.radius, m.size) if m.surface == "sphere_octant" else disc_surface(m.radius, m.size)
+
+
+def _orientation(config: MembraneRunConfig) -> Any:
+    """The rest normals: outward (octant), +z (disc), towards the other disc (facing_discs)."""
+    m = config.membrane
+    if m.surface == "sphere_octant":
+        return radial_orientation()
+    if m.surface == "disc":
+        return axis_orientation()
+    return lambda c: np.where(c[:, 2:3] < m.gap / 2, 1.0, -1.0) * np.array([0.0, 0.0, 1.0])
+
+
+def _pair_record(pair: MembranePairContact) -> dict[str, Any]:
+    """A membrane-membrane contact's state for a step: force on the slave and on the master, penetration,
+    contact fraction (of the slave's area), active nodes. Collective."""
+    report = pair.report()
+    return {k: report[k] for k in ("pair", "force", "master_force", "max_penetration", "contact_fraction",
+                                   "active_points")}
 
 
 def _obstacle_name(spec: Any, index: int) -> str:
@@ -92,7 +112,7 @@ class _Writer:
 
 
 def _step_record(step: InflationStep, problem: MembraneProblem, config: MembraneRunConfig, law: MembraneLaw,
-                 rest_volume: float) -> dict[str, Any]:
+                 rest_volume: float, pairs: list[MembranePairContact]) -> dict[str, Any]:
     m = config.membrane
     record: dict[str, Any] = {"pressure": step.pressure, "volume": step.volume, "energy": step.energy,
                               "iterations": step.iterations, "contact_fraction": step.contact_fraction}
@@ -100,6 +120,9 @@ def _step_record(step: InflationStep, problem: MembraneProblem, config: Membrane
         stretch = (step.volume / rest_volume) ** (1.0 / 3.0)
         record["stretch"] = stretch
         record["balloon_pressure"] = float(balloon_pressure(law, m.radius, stretch))
+    elif m.surface == "facing_discs":
+        record["centre_deflection"] = problem.max_component(2)  # the lower disc's (towards +z)
+        record["pairs"] = [_pair_record(pair) for pair in pairs]
     else:
         record["centre_deflection"] = problem.max_component(2)
         if m.law == "stvk":
@@ -143,14 +166,19 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
     data = _surface(config) if comm.rank == 0 else None
     num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
     domain = build_domain(comm, data)
-    orientation = radial_orientation() if m.surface == "sphere_octant" else axis_orientation()
-    problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree)
+    problem = MembraneProblem(domain, law, _orientation(config), m.border, quadrature_degree=m.quadrature_degree)
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]
-    if m.surface == "disc":
+    pairs = [MembranePairContact(problem, spec.surface, spec.master, spec.penalty, name=spec.label,
+                                 augmented=spec.augmented) for spec in config.contacts]
+    contacts = [*contacts, *pairs]
+    if m.surface in ("disc", "facing_discs"):
         bump = m.bump * m.radius
-        problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0], bump * (1 - (x[0]**2 + x[1]**2) / m.radius**2)]))
+        side = (lambda x: np.where(x[2] < m.gap / 2, 1.0, -1.0)) if m.surface == "facing_discs" \
+            else (lambda x: 1.0)
+        problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0],
+                                                   side(x) * bump * (1 - (x[0]**2 + x[1]**2) / m.radius**2)]))
     units = config.units
     summary: dict[str, Any] = {
         "kind": "membrane", "config": config.document, "status": "running",
@@ -160,6 +188,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
                     "fixed": {k: list(v) for k, v in m.border.items()}},
         "law": {"name": law.name, **m.law_parameters},
         "obstacles": [_obstacle_summary(spec) for spec in config.obstacles],
+        "pairs": [{"name": spec.label, "surface": spec.surface, "master": spec.master, "penalty": spec.penalty,
+                   "augmented": spec.augmented} for spec in config.contacts],
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,
     }
@@ -185,8 +215,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         if pressures is not None:
             steps = []
             for p in pressures:  # one at a time: the surface is written after each equilibrium
-                steps += inflate(problem, [p], cutbacks=inflation.cutbacks)
-                summary["steps"].append(_step_record(steps[-1], problem, config, law, rest_volume))
+                steps += inflate(problem, [p], cutbacks=inflation.cutbacks, uzawa_tolerance=config.uzawa_tolerance)
+                summary["steps"].append(_step_record(steps[-1], problem, config, law, rest_volume, pairs))
                 writer.write(p)
                 signum = stop.check(comm)
                 if signum:
@@ -199,7 +229,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
             def on_step(step: InflationStep) -> bool:
                 # every equilibrium of the growth (its state is problem.u now): recorded and saved, and the
                 # signals checked between the steps
-                summary["steps"].append(_step_record(step, problem, config, law, rest_volume))
+                summary["steps"].append(_step_record(step, problem, config, law, rest_volume, pairs))
                 signals[0] = stop.check(comm)
                 if not signals[0]:
                     save()
@@ -208,14 +238,15 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
             try:
                 steps = inflate_to_volume(problem, inflation.volume, dp, max_steps=inflation.max_steps,
                                           cutbacks=inflation.cutbacks, contact_fraction=inflation.contact_fraction,
-                                          on_step=on_step)
+                                          on_step=on_step, uzawa_tolerance=config.uzawa_tolerance)
             except InflationStopped as stopped:
                 writer.write(stopped.steps[-1].pressure)
                 raise interrupted(signals[0], len(stopped.steps), stopped.steps[-1].pressure) from None
             # the last step is the state left in the problem; the others are recorded as they were found
-            summary["steps"] = [_step_record(s, problem, config, law, rest_volume) for s in steps]
+            summary["steps"] = [_step_record(s, problem, config, law, rest_volume, pairs) for s in steps]
             for record in summary["steps"][:-1]:
                 record.pop("centre_deflection", None)
+                record.pop("pairs", None)
             writer.write(steps[-1].pressure)
     except RuntimeError as err:
         error = str(err)
