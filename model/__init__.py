@@ -11,7 +11,11 @@ The Python API (the same pipeline as ``python -m model run``):
 the key); ``run`` builds the domain, fields, problem and solver, steps the load (or time) and writes
 the results, returning a RunResult. Importing ``model`` or ``model.config`` does not load dolfinx.
 
-One BLAS thread per MPI rank (set before numpy or PETSc load BLAS).
+One BLAS thread per MPI rank (set before numpy or PETSc load BLAS), and one SCOTCH thread per rank: PT-SCOTCH's
+threads made the partition of a mesh random (dolfinx 0.5's create_box of one box in three 2-rank runs of the same
+script: three different partitions, and a different one for each later mesh of a process, even with
+partitioner_scotch(seed=0)), so a 2-rank run's iteration counts and last digits changed from run to run; with
+SCOTCH_PTHREAD_NUMBER = 1 every run and every mesh of a process gets the same partition (Debian 12 and 13).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("SCOTCH_PTHREAD_NUMBER", "1")  # a deterministic mesh partition (module docstring)
 
 if TYPE_CHECKING:
     from model.config import RunConfig

@@ -334,16 +334,34 @@ def test_sigterm_ends_a_membrane_run_cleanly(tmp_path: Path) -> None:
     raw["inflation"] = {"pressure": 6.0e-3, "steps": 3000}  # long enough to be stopped (about 0.03 s a step)
     raw["output"] = {"xdmf": True, "vtu": False}
     write_toml(raw, config)
-    out = tmp_path / "out"
-    process = subprocess.Popen([sys.executable, "-m", "model", "run", str(config), "--out", str(out)],
-                               env=environment(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 300
-    while not (out / "summary.json").exists() or len(json.loads((out / "summary.json").read_text())["steps"]) < 2:
-        assert process.poll() is None, f"the run ended before the signal: {process.communicate()}"
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    for attempt in range(2):
+        out = tmp_path / f"out{attempt}"
+        logs = [open(tmp_path / f"{name}{attempt}.txt", "w+") for name in ("stdout", "stderr")]
+        env = {**environment(), "PYTHONUNBUFFERED": "1"}
+        process = subprocess.Popen([sys.executable, "-m", "model", "run", str(config), "--out", str(out)],
+                                   env=env, text=True, stdout=logs[0], stderr=logs[1])
+        deadline = time.monotonic() + 300
+        while not (out / "summary.json").exists() or len(json.loads((out / "summary.json").read_text())["steps"]) < 2:
+            if process.poll() is not None:
+                break
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        if process.poll() is None:
+            break
+        for log in logs:
+            log.close()
+        stdout, stderr = ((tmp_path / f"{name}{attempt}.txt").read_text() for name in ("stdout", "stderr"))
+        # Twice in many runs of the whole suite under load the child ended at once with exit code 1 and printed
+        # nothing (not even the first step's line, with unbuffered output) nor wrote summary.json: a start-up
+        # failure of the process (not understood), retried once; any other early end fails here.
+        started = stdout.strip() or stderr.strip() or out.exists()
+        assert attempt == 0 and not started, (f"the run ended before the signal (exit code {process.returncode}): "
+                                              f"stdout {stdout[-1000:]!r}, stderr {stderr[-2000:]!r}")
     process.send_signal(signal.SIGTERM)
-    _, stderr = process.communicate(timeout=300)
+    process.wait(timeout=300)
+    stderr = (tmp_path / f"stderr{attempt}.txt").read_text()
+    for log in logs:
+        log.close()
     assert process.returncode == 128 + signal.SIGTERM, stderr[-2000:]
     assert "interrupted by SIGTERM" in stderr
     summary = json.loads((out / "summary.json").read_text())
