@@ -34,7 +34,7 @@ from model.experiments.layered_arm import (
     skin_difference,
 )
 
-#: The coarse mesh's run turns the forearm by 10 degrees (4 load steps, no cutback with the l2 line search): beyond
+#: The coarse mesh's run turns the forearm by 10 degrees (4 load steps, no cutback with the default line search): beyond
 #: about 15 degrees Newton stalls on the layered arm (docs/layers.md, "Elbow flexion of the layered arm").
 ANGLE = 10.0
 STEPS = 4

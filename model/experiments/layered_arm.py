@@ -163,12 +163,9 @@ def flexion_raw(layered: bool, angle: float = 30.0, size: float = 0.015, turn_el
     raw["contact"] = [*raw.get("contact", []),
                       {"surface": f"{prefix}skin", "bone": "humerus", "method": "penalty", "penalty": k_bone,
                        "quadrature_degree": "vertex"}]
-    # the l2 line search (on the residual's norm): the default, backtracking on the total potential, fails now and
-    # then where the lagged sliding pairs' step is no descent direction, at round-off-dependent steps (1 and 2
-    # ranks cut back at different loads: 33 s and 190 s); with l2 neither cuts back. (Measured before sliding pairs made
-    # full steps the default, model.problem.body_contact.BodyContact.potential_reason; not re-measured with them.)
-    raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8, "snes_linesearch_type": "l2",
-                                       **(petsc_options or {})}}
+    # the default line search (model.solvers.newton.default_line_search): full Newton steps with the layered arm's
+    # sliding pairs (no consistent potential), backtracking on the total potential for the conforming arm
+    raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8, **(petsc_options or {})}}
     return raw
 
 
