@@ -77,7 +77,8 @@ def nodal_measure(problem: MembraneProblem, region: str | None = None) -> ufl.Me
 
 
 class _NodalContact:
-    """What the membrane contacts share: owned nodes, their lumped areas, the force from a contact energy."""
+    """What the membrane contacts share: owned nodes, their lumped areas, the force from a contact energy, the
+    nodal contact pressure and its Uzawa update."""
 
     def _setup(self, problem: MembraneProblem, energy: ufl.Form, dA: ufl.Measure) -> None:
         self.problem, self.comm = problem, problem.domain.mesh.comm
@@ -116,6 +117,27 @@ class _NodalContact:
     def touching(self) -> np.ndarray:
         """A bool per owned node of the membrane: True where it touches (g < 0)."""
         raise NotImplementedError
+
+    # the nodal penalty / augmented Lagrangian, on the nodes the subclass checks: nodal_gaps() g, the multiplier
+    # Function lambda at their dofs self._q, self.k, self.augmented
+
+    def nodal_pressures(self) -> np.ndarray:
+        """The contact pressure per reference area at the checked owned nodes, max(lambda - k g, 0) (lambda = 0
+        for the plain penalty). Collective."""
+        lam = self.multiplier.x.array[self._q] if self.augmented else 0.0
+        return np.asarray(contact_pressure(self.nodal_gaps(), float(self.k.value), lam))
+
+    def uzawa_residual(self) -> float:
+        """max over the checked nodes of |min(g, lambda/k)|: 0 at the exact contact solution (g >= 0, lambda >= 0,
+        lambda g = 0). Collective."""
+        lam = self.multiplier.x.array[self._q]
+        local = np.abs(np.minimum(self.nodal_gaps(), lam / float(self.k.value)))
+        return float(self.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX))
+
+    def update_multiplier(self) -> None:
+        """Uzawa: lambda_i <- max(lambda_i - k g_i, 0) at the checked nodes. Collective (ghosts updated)."""
+        self.multiplier.x.array[self._q] = self.nodal_pressures()
+        self.multiplier.x.scatter_forward()
 
     def contact_fraction(self) -> float:
         """The share of the reference area (lumped to the nodes) whose nodes touch, g < 0. Collective."""
@@ -169,26 +191,8 @@ class ObstacleContact(_NodalContact):
         """g at the owned nodes."""
         return self.sign * np.asarray(self.obstacle.distance(self.positions()), dtype=np.float64)
 
-    def nodal_pressures(self) -> np.ndarray:
-        """The contact pressure per reference area at the owned nodes, max(lambda - k g, 0) (lambda = 0 for the
-        plain penalty)."""
-        lam = self.multiplier.x.array[self._q] if self.augmented else 0.0
-        return np.asarray(contact_pressure(self.nodal_gaps(), float(self.k.value), lam))
-
     def touching(self) -> np.ndarray:
         return self.nodal_pressures() > 0.0
-
-    def uzawa_residual(self) -> float:
-        """max over the nodes of |min(g, lambda/k)|: 0 at the exact contact solution (g >= 0, lambda >= 0,
-        lambda g = 0). Collective."""
-        lam = self.multiplier.x.array[self._q]
-        local = np.abs(np.minimum(self.nodal_gaps(), lam / float(self.k.value)))
-        return float(self.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX))
-
-    def update_multiplier(self) -> None:
-        """Uzawa: lambda_i <- max(lambda_i - k g_i, 0) at the nodes. Collective (ghosts updated)."""
-        self.multiplier.x.array[self._q] = self.nodal_pressures()
-        self.multiplier.x.scatter_forward()
 
     def report(self) -> dict[str, Any]:
         """max_penetration = max(0, -min g), force (on the membrane), contact_fraction, active_points (nodes
@@ -418,27 +422,10 @@ class MembranePairContact(_NodalContact):
                          self.reference[s] + u[s] - self.X_star.x.array.reshape(-1, 3)[s]
                          - self.z.x.array.reshape(-1, 3)[s])
 
-    def nodal_pressures(self) -> np.ndarray:
-        """The contact pressure per reference area at the owned slave nodes, max(lambda - k g, 0) (lambda = 0
-        for the plain penalty). Collective."""
-        lam = self.multiplier.x.array[self._q] if self.augmented else 0.0
-        return np.asarray(contact_pressure(self.nodal_gaps(), float(self.k.value), lam))
-
     def touching(self) -> np.ndarray:
         mask = np.zeros(self.n_owned, dtype=bool)
         mask[self.slave_blocks] = self.nodal_pressures() > 0.0
         return mask
-
-    def uzawa_residual(self) -> float:
-        """max over the slave nodes of |min(g, lambda/k)|: 0 at the exact contact solution. Collective."""
-        lam = self.multiplier.x.array[self._q]
-        local = np.abs(np.minimum(self.nodal_gaps(), lam / float(self.k.value)))
-        return float(self.comm.allreduce(float(local.max(initial=0.0)), op=MPI.MAX))
-
-    def update_multiplier(self) -> None:
-        """Uzawa: lambda_i <- max(lambda_i - k g_i, 0) at the slave nodes. Collective (ghosts updated)."""
-        self.multiplier.x.array[self._q] = self.nodal_pressures()
-        self.multiplier.x.scatter_forward()
 
     def report(self) -> dict[str, Any]:
         """max_penetration (max(0, -min g)), force on the slave (-dPi_c/du at fixed z, summed), force on the
