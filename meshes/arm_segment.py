@@ -87,7 +87,7 @@ def build_arm_segment_model(
     ``gap`` > 0 (with ``touching``): muscle a keeps x <= -gap / 2 and b x >= gap / 2, and the slab of the two
     bellies between those planes, (belly a | belly b) & |x| < gap / 2, is left empty (a void, taken out of the fat
     too): the flat faces are then single-sided, named ``a_flat`` and ``b_flat`` (tags 8, 9), and the fat's
-    surface facing the void ``void`` (tag 10)."""
+    surface facing the void ``void`` (tag 10); the mesh is refined near the void (:data:`VOID_SIZE`)."""
     occ = gmsh.model.occ
     fat = occ.addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, length, radius)
     solids: dict[str, list[int]] = {}
@@ -164,6 +164,30 @@ def build_arm_segment_model(
             raise RuntimeError(f"{_GENERATOR}: no exterior surface classified as {name!r}")
         gmsh.model.addPhysicalGroup(2, faces[name], tag)
         gmsh.model.setPhysicalName(2, tag, name)
+    if touching and gap > 0.0:
+        _refine_near(faces["void"], VOID_SIZE * gap, VOID_REACH * gap)
+
+
+#: Element size on the void's surfaces (layered_arm's ``gap``), in gaps: the fat's band there is gap / 2 wide, and
+#: the tetrahedra on it are slivers unless their edges along it are short: 10 gaps keep the radius ratio above
+#: 0.03 (0.0017 with the coarse mesh's 8 mm edges there); the size grows back to the mesh's within VOID_REACH gaps.
+VOID_SIZE = 10.0
+VOID_REACH = 30.0
+
+
+def _refine_near(surfaces: list[int], size: float, reach: float) -> None:
+    """Element size ``size`` on ``surfaces``, growing linearly to the mesh's maximum at distance ``reach``
+    (gmsh Distance and Threshold fields, the background mesh; the curvature rule still applies elsewhere)."""
+    field = gmsh.model.mesh.field
+    distance = field.add("Distance")
+    field.setNumbers(distance, "SurfacesList", surfaces)
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", min(size, gmsh.option.getNumber("Mesh.MeshSizeMax")))
+    field.setNumber(threshold, "SizeMax", gmsh.option.getNumber("Mesh.MeshSizeMax"))
+    field.setNumber(threshold, "DistMin", 0.0)
+    field.setNumber(threshold, "DistMax", reach)
+    field.setAsBackgroundMesh(threshold)
 
 
 def arm_segment_options(size: float, tendon_radius: float | None = None,

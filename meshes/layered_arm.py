@@ -32,7 +32,7 @@ import time
 import gmsh
 import numpy as np
 
-from meshes._gmsh import CURVATURE_ELEMENTS, MESH_ATTEMPTS, generate_tetrahedra, gmsh_session
+from meshes._gmsh import CURVATURE_ELEMENTS, generate_tetrahedra, gmsh_session
 from meshes._validate import ParameterError, positive_float
 from meshes.arm_segment import GAP_FACES, _check, arm_segment_options, build_arm_segment_model, check_turn_elements
 from meshes.combine import combine
@@ -177,8 +177,8 @@ def layered_arm(
     are not cut): the bellies are cut at x = -gap / 2 (a) and x = +gap / 2 (b) instead, and the slab between them
     (the part of the two bellies with |x| < gap / 2) is empty: ``a_flat`` and ``b_flat`` face each other ``gap``
     apart across a void (no fat there), and the fat's surface facing the void is ``fat_void`` (a free surface:
-    :data:`GAP_BOUNDARY`). The fat's band on the void's rim is ``gap / 2`` wide, so a coarse mesh has slivers
-    there (gmsh warns; the muscles' meshes are unaffected).
+    :data:`GAP_BOUNDARY`). The fat's band on the void's rim is ``gap / 2`` wide: the mesh is refined to 10 gaps
+    there (meshes.arm_segment.VOID_SIZE), else its tetrahedra would be slivers.
 
     Returns
     -------
@@ -228,8 +228,7 @@ def layered_arm_meshes(
     start = time.perf_counter()
     with gmsh_session(arm_segment_options(lc, rt, turns), name=_GENERATOR):
         build_arm_segment_model(total, r, rm, rt, lt, spacing_, touching, void)
-        # a gap leaves slivers by construction (the fat's thin band on the void's rim, gap / 2 wide): no reseeding
-        generate_tetrahedra("layered_arm", attempts=1 if void > 0.0 else MESH_ATTEMPTS)
+        generate_tetrahedra("layered_arm")
         conforming = from_gmsh_model(gmsh.model)
     mesh = combine(split_bodies(conforming))
     logger.info("layered_arm(length=%g, radius=%g, muscle_radius=%g, tendon_radius=%g, tendon_length=%g, "

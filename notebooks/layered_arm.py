@@ -29,7 +29,7 @@
 # tetrahedra), the same materials and activations, two load steps. What changes when the muscles may slide:
 # the bulge of the skin, the skin's displacement, the forces between the layers, the slip.
 #
-# Run with plain Python (`python notebooks/layered_arm.py`); about a minute and a half.
+# Run with plain Python (`python notebooks/layered_arm.py`); about two minutes.
 
 # %%
 import os
@@ -316,7 +316,7 @@ if plt is not None:
 # `examples/layered_arm_gap.toml`: no fat between the muscles, whose bellies are cut flat 0.15 mm apart (the
 # slab between them is a void: `layered_arm`'s `gap`); both muscles are activated to 1 in two steps and their
 # flat faces are in frictionless penalty contact. At half the activation the faces have approached but are still
-# apart (no contact force); at full activation they touch and press on each other. About 30 s.
+# apart (no contact force); at full activation they touch and press on each other. About 40 s.
 
 # %%
 gap_run = model.run(ROOT / "examples" / "layered_arm_gap.toml", out=OUT / "gap", overrides=OVERRIDES)
@@ -362,6 +362,6 @@ if plt is not None:
 # The section of the two bellies at mid-length near the plane x = 0 (x magnified: micrometres against
 # millimetres): the flat faces start 150 um apart (dashed), approach by about 100 um at half the activation
 # (dotted: still apart, no contact force) and meet at full activation (solid: on top of each other at
-# mid-length, the contact holding them within the penalty's p/k, 0.4 um); towards the lens' ends (z) they stay
-# apart (the largest gap, 39 um).
+# mid-length, the contact holding them within the penalty's p/k, 0.5 um); towards the lens' ends (z) they stay
+# apart (the largest gap, 47 um).
 # docs/layers.md ("Muscles that close a gap") has the numbers.
