@@ -149,10 +149,11 @@ def test_action_equals_reaction(run: ArmResult) -> None:
 
 @pytest.mark.slow
 def test_the_penetration_shrinks_as_one_over_k(run: ArmResult) -> None:
-    """Ten times the penalty (k = 1e12): the same contact force (the penalty's give no longer counts against a
-    0.15 mm gap) and a tenth of the penetration (p / k); docs/layers.md has the numbers."""
+    """Ten times the penalty (k = 1e12): the same contact force (measured 2.2293 N against 2.2228 N: the penalty's
+    give no longer counts against a 0.15 mm gap) on the same nodes, and a tenth of the penetration (0.0521 um
+    against 0.4856 um, ratio 9.3: p / k). About 40 s more."""
     stiff = run_gap(GAP, STEPS, k_contact=1e12)
     soft, hard = run.pairs["a_on_b"], stiff.pairs["a_on_b"]
-    assert stiff.completed and hard["active_points"] >= 3
+    assert stiff.completed and abs(hard["active_points"] - soft["active_points"]) <= 2  # measured: the same 40
     assert hard["normal_force"] == pytest.approx(soft["normal_force"], rel=0.02)
     assert soft["max_penetration"] / hard["max_penetration"] == pytest.approx(10.0, rel=0.15)
