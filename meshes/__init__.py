@@ -18,7 +18,9 @@ arm_segment fat belly_a tendon_a belly_b tendon_b             a_origin a_inserti
                                                               proximal distal skin
 layered_arm a_belly a_tendon b_belly b_tendon fat               a_origin a_insertion a_lateral a_surface (same for b)
             (separate bodies, no shared node)                fat_proximal fat_distal fat_skin fat_cavity_a
-                                                              fat_cavity_b fat_surface
+                                                              fat_cavity_b fat_surface; touching: a_flat a_round
+                                                              b_flat b_round; gap > 0: fat_void (a void between
+                                                              the flat faces)
 sphere      body                                              surface (octant: xmin ymin zmax surface)
 stacked_    lower upper (two separate bodies, one on the      <body>_xmin ... <body>_zmax, <body>_surface
 blocks      other: contact between bodies)

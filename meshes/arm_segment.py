@@ -29,6 +29,7 @@ from meshes.fusiform import add_muscle
 __all__ = [
     "ARM_SEGMENT_FACES",
     "ARM_SEGMENT_REGIONS",
+    "GAP_FACES",
     "CURVATURE_ELEMENTS",
     "arm_segment",
     "arm_segment_options",
@@ -43,6 +44,9 @@ logger = logging.getLogger(__name__)
 ARM_SEGMENT_REGIONS = ("fat", "belly_a", "tendon_a", "belly_b", "tendon_b")
 #: Physical surface names (tags 1..7) of :func:`arm_segment`.
 ARM_SEGMENT_FACES = ("a_origin", "a_insertion", "b_origin", "b_insertion", "proximal", "distal", "skin")
+#: The extra physical surfaces (tags 8..10) of a touching arm with a gap (build_arm_segment_model's ``gap`` > 0):
+#: the muscles' flat faces and the fat's surface facing the void between them.
+GAP_FACES = ("a_flat", "b_flat", "void")
 
 _GENERATOR = "arm_segment"
 
@@ -74,25 +78,46 @@ def build_arm_segment_model(
     tendon_length: float,
     spacing: float,
     touching: bool = False,
+    gap: float = 0.0,
 ) -> None:
     """Create the fragmented arm-segment geometry and its physical groups in the current gmsh model.
 
     ``touching``: the bellies overlap (``spacing < 2 muscle_radius``) and each is cut by the plane x = 0, so that
-    they share a flat face there (muscle a keeps x <= 0, muscle b x >= 0) and no fat lies between them."""
+    they share a flat face there (muscle a keeps x <= 0, muscle b x >= 0) and no fat lies between them.
+    ``gap`` > 0 (with ``touching``): muscle a keeps x <= -gap / 2 and b x >= gap / 2, and the slab of the two
+    bellies between those planes, (belly a | belly b) & |x| < gap / 2, is left empty (a void, taken out of the fat
+    too): the flat faces are then single-sided, named ``a_flat`` and ``b_flat`` (tags 8, 9), and the fat's
+    surface facing the void ``void`` (tag 10); the mesh is refined near the void (:data:`VOID_SIZE`)."""
     occ = gmsh.model.occ
     fat = occ.addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, length, radius)
     solids: dict[str, list[int]] = {}
+    half_gap = 0.5 * gap if touching else 0.0
+    copies: list[tuple[int, int]] = []  # the whole bellies (gap > 0), for the void
     for label, x0 in (("a", -0.5 * spacing), ("b", 0.5 * spacing)):
         belly, origin, insertion = add_muscle(length - 2.0 * tendon_length, muscle_radius, tendon_radius,
                                               tendon_length, x0)
-        if touching:  # keep the belly's half space x <= 0 (a) or x >= 0 (b)
-            half = occ.addBox(-radius if label == "a" else 0.0, -radius, 0.0, radius, 2.0 * radius, length)
+        if touching and gap > 0.0:
+            copies += occ.copy([(3, belly)])
+        if touching:  # keep the belly's half space x <= -gap / 2 (a) or x >= gap / 2 (b)
+            x_min = -radius if label == "a" else half_gap
+            half = occ.addBox(x_min, -radius, 0.0, radius - half_gap, 2.0 * radius, length)
             cut, _ = occ.intersect([(3, belly)], [(3, half)])
             if len(cut) != 1:
-                raise RuntimeError(f"{_GENERATOR}: cutting belly {label} at x = 0 gave {len(cut)} volumes, not 1")
+                plane = -half_gap if label == "a" else half_gap
+                raise RuntimeError(f"{_GENERATOR}: cutting belly {label} at x = {plane:g} gave {len(cut)} volumes, "
+                                   "not 1")
             belly = cut[0][1]
         solids[f"belly_{label}"] = [belly]
         solids[f"tendon_{label}"] = [origin, insertion]
+    if copies:  # the void: the bellies' slab |x| < gap / 2, taken out of the fat
+        slab = occ.addBox(-half_gap, -radius, 0.0, gap, 2.0 * radius, length)
+        void, _ = occ.intersect(copies, [(3, slab)])
+        if len(void) > 1:  # the two bellies' parts of the slab overlap: one solid
+            void, _ = occ.fuse(void[:1], void[1:])
+        cut, _ = occ.cut([(3, fat)], void)
+        if len(cut) != 1:
+            raise RuntimeError(f"{_GENERATOR}: taking the void out of the fat gave {len(cut)} volumes, not 1")
+        fat = cut[0][1]
     tools = [(3, tag) for name in ARM_SEGMENT_REGIONS[1:] for tag in solids[name]]
     _, mapping = occ.fragment([(3, fat)], tools)
     occ.synchronize()
@@ -113,19 +138,56 @@ def build_arm_segment_model(
     for name, tags in volumes.items():
         for _, surface in gmsh.model.getBoundary([(3, t) for t in tags], combined=False, oriented=False):
             owners.setdefault(surface, []).append(name)
-    faces: dict[str, list[int]] = {name: [] for name in ARM_SEGMENT_FACES}
+    names = ARM_SEGMENT_FACES + (GAP_FACES if touching and gap > 0.0 else ())
+    faces: dict[str, list[int]] = {name: [] for name in names}
     for surface in sorted(s for s, names in owners.items() if len(names) == 1):
+        owner = owners[surface][0]
+        if touching and gap > 0.0 and owner.startswith("belly_"):  # its flat face, on the void
+            faces[f"{owner[-1]}_flat"].append(surface)
+            continue
         end = _end(occ.getCenterOfMass(2, surface)[2], length)
-        faces[_face_name(owners[surface][0], end)].append(surface)
+        if touching and gap > 0.0 and owner == "fat" and end is None:
+            # the skin's points lie on r = radius, the void's on a belly's surface (r <= spacing / 2 + muscle_radius
+            # < radius): a point of the surface at its parameters' mid-range tells them apart
+            bounds = gmsh.model.getParametrizationBounds(2, surface)
+            x, y, _ = gmsh.model.getValue(2, surface, [0.5 * (lo + hi) for lo, hi in zip(*bounds, strict=True)])
+            if math.hypot(x, y) < (1.0 - 1e-6) * radius:
+                faces["void"].append(surface)
+                continue
+        faces[_face_name(owner, end)].append(surface)
 
     for tag, name in enumerate(ARM_SEGMENT_REGIONS, start=1):
         gmsh.model.addPhysicalGroup(3, volumes[name], tag)
         gmsh.model.setPhysicalName(3, tag, name)
-    for tag, name in enumerate(ARM_SEGMENT_FACES, start=1):
+    for tag, name in enumerate(names, start=1):
         if not faces[name]:
             raise RuntimeError(f"{_GENERATOR}: no exterior surface classified as {name!r}")
         gmsh.model.addPhysicalGroup(2, faces[name], tag)
         gmsh.model.setPhysicalName(2, tag, name)
+    if touching and gap > 0.0:
+        _refine_near(faces["void"], VOID_SIZE * gap, VOID_REACH * gap)
+
+
+#: Element size on the void's surfaces (layered_arm's ``gap``), in gaps: the fat's band there is gap / 2 wide, and
+#: the tetrahedra on it are slivers unless their edges along it are short: 10 gaps keep the radius ratio above
+#: 0.03 (0.0017 with the coarse mesh's 8 mm edges there); the size grows back to the mesh's within VOID_REACH gaps.
+VOID_SIZE = 10.0
+VOID_REACH = 30.0
+
+
+def _refine_near(surfaces: list[int], size: float, reach: float) -> None:
+    """Element size ``size`` on ``surfaces``, growing linearly to the mesh's maximum at distance ``reach``
+    (gmsh Distance and Threshold fields, the background mesh; the curvature rule still applies elsewhere)."""
+    field = gmsh.model.mesh.field
+    distance = field.add("Distance")
+    field.setNumbers(distance, "SurfacesList", surfaces)
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", min(size, gmsh.option.getNumber("Mesh.MeshSizeMax")))
+    field.setNumber(threshold, "SizeMax", gmsh.option.getNumber("Mesh.MeshSizeMax"))
+    field.setNumber(threshold, "DistMin", 0.0)
+    field.setNumber(threshold, "DistMax", reach)
+    field.setAsBackgroundMesh(threshold)
 
 
 def arm_segment_options(size: float, tendon_radius: float | None = None,

@@ -47,8 +47,9 @@ from model.problem import ElasticityProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PAIRS", "TOUCHING_PAIRS", "ArmResult", "arm_config", "arm_raw", "compare_arms", "compare_flexion",
-           "flexion_bones", "flexion_config", "flexion_raw", "run_arm", "run_flexion", "skin_difference"]
+__all__ = ["GAP_MESH", "PAIRS", "TOUCHING_PAIRS", "ArmResult", "arm_config", "arm_raw", "compare_arms",
+           "compare_flexion", "flexion_bones", "flexion_config", "flexion_raw", "gap_raw", "run_arm", "run_flexion",
+           "run_gap", "skin_difference"]
 
 #: The segment's length (meshes.arm_segment's default; the bulge band is its middle fifth).
 LENGTH = 0.12
@@ -210,6 +211,7 @@ class ArmResult:
     bone: dict[str, Any] = field(default_factory=dict)
     distal_X: np.ndarray | None = None
     distal_u: np.ndarray | None = None
+    history: list[dict[str, Any]] = field(default_factory=list)
 
 
 def _bulge(X: np.ndarray, u: np.ndarray, relative: bool = False) -> tuple[float, float]:
@@ -254,10 +256,13 @@ def run_flexion(layered: bool, angle: float = 30.0, size: float = 0.015, turn_el
 
 
 def _run(config: RunConfig, layered: bool, names: tuple[tuple[str, str, str, str], ...], steps: int,
-         comm: MPI.Comm, flexion: bool = False) -> ArmResult:
+         comm: MPI.Comm, flexion: bool = False, track: str | None = None) -> ArmResult:
     """Build and solve ``config`` to load factor 1 in ``steps`` steps (cut back where Newton fails) and measure
     it. ``names``: the layered run's pairs (the first contacts of ``config``, in order); ``flexion``: the last
-    contact is the humerus' and the bulge is relative to the band's mean displacement. Collective."""
+    contact is the humerus' and the bulge is relative to the band's mean displacement; ``track``: a pair whose
+    report, the load factor ("load_factor") and the smallest gap ("min_gap") are recorded at rest and after every
+    converged step (ArmResult.history).
+    Collective."""
     import time
 
     from model.pipeline import build, make_solver
@@ -270,14 +275,28 @@ def _run(config: RunConfig, layered: bool, names: tuple[tuple[str, str, str, str
     pairs = {name: setup.contacts[i] for i, (name, *_) in enumerate(names)} if layered else {}
     solver = make_solver(problem, config, setup.contacts)
     records: list[Any] = []
-    outcome = step_loads(solver, steps, on_step=records.append)
+    history: list[dict[str, Any]] = []
+
+    def measure(load_factor: float) -> None:
+        gaps = pairs[track].nodal_gaps()
+        history.append({"load_factor": load_factor, **pairs[track].report(),
+                        "min_gap": float(comm.allreduce(float(gaps.min(initial=np.inf)), op=MPI.MIN))})
+
+    def on_step(record: Any) -> None:
+        records.append(record)
+        if track is not None and record.result.converged:
+            measure(float(record.load_factor))
+
+    if track is not None:
+        measure(0.0)
+    outcome = step_loads(solver, steps, on_step=on_step)
     iterations = [int(r.result.iterations) for r in records if r.result.converged]
     skin = "fat_skin" if layered else "skin"
     X, u = _nodes_on(problem, skin)
     bulge_max, bulge_mean = _bulge(X, u, relative=flexion)
     msh = problem.domain.mesh
     result = ArmResult(layered, msh.topology.index_map(3).size_global, problem.space.dofmap.index_map.size_global * 3,
-                       bool(outcome.completed), iterations, X, u, bulge_max, bulge_mean)
+                       bool(outcome.completed), iterations, X, u, bulge_max, bulge_mean, history=history)
     if layered or flexion:
         residual = solver.unconstrained_residual()
         result.reactions = {name: np.asarray(f) for name, f in reactions(problem, residual).items()}
@@ -317,3 +336,29 @@ def compare_arms(**kwargs: Any) -> tuple[ArmResult, ArmResult]:
 def compare_flexion(**kwargs: Any) -> tuple[ArmResult, ArmResult]:
     """:func:`run_flexion` conforming and layered with the same keyword arguments. Collective."""
     return run_flexion(False, **kwargs), run_flexion(True, **kwargs)
+
+
+# --- muscles that start apart and close a gap (layered_arm's touching = true with gap > 0) -------------------------
+
+#: The gap run's mesh (examples/layered_arm_gap.toml): the touching arm's coarse mesh with the flat faces apart.
+GAP_MESH = {"size": 0.015, "turn_elements": 8, "spacing": 0.019}
+
+
+def gap_raw(gap: float, steps: int = 4, k_contact: float = 1e11, k_sliding: float = 1e10,
+            activations: tuple[float, float] = (1.0, 1.0), **mesh: Any) -> dict[str, Any]:
+    """The layered arm with its muscles' flat faces ``gap`` apart across a void (examples/layered_arm_gap.toml):
+    :func:`arm_raw`'s touching arm (``mesh``: :data:`GAP_MESH`'s keys, its values by default) with layered_arm's
+    ``gap``, both muscles activated to ``activations`` in ``steps`` steps, the pairs :data:`TOUCHING_PAIRS`
+    (a_flat against b_flat: penalty ``k_contact``, not augmented)."""
+    params = {**GAP_MESH, **mesh}
+    raw = arm_raw(True, params["size"], params["turn_elements"], steps, k_sliding, k_contact,
+                  activations=activations, touching=params["spacing"], augmented=False)
+    raw["mesh"]["gap"] = gap
+    return raw
+
+
+def run_gap(gap: float, steps: int = 4, comm: MPI.Comm = MPI.COMM_WORLD, **kwargs: Any) -> ArmResult:
+    """Run :func:`gap_raw` (its keyword arguments ``kwargs``) and measure it as :func:`run_arm`, with the muscles'
+    contact report after every converged step (ArmResult.history: the gap closing). Collective."""
+    config = parse(gap_raw(gap, steps, **kwargs))
+    return _run(config, True, TOUCHING_PAIRS, steps, comm, track="a_on_b")
