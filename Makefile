@@ -40,10 +40,10 @@ demo: setup
 	@echo "results and PNG in results/demo (deformed.png, results.xdmf, step_*.vtu, summary.json)"
 
 test-serial: setup
-	$(PY) -m pytest -q -n 2 tests
+	$(PY) -m pytest -q -n 2 --durations=25 tests
 
 test-mpi: setup
-	$(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider tests
+	$(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider --durations=15 tests
 
 test: test-serial test-mpi
 
