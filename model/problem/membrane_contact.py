@@ -45,6 +45,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
+from scipy.sparse import csr_matrix
 
 from forms.obstacles import Obstacle, augmented_lagrangian_energy, contact_pressure, penalty_energy
 from model import compat
@@ -218,7 +219,8 @@ class MembranePairContact(_NodalContact):
     derives every term and the Newton solver (model.solvers.membrane) adds R += Pi^T dPi_c/dz and
     K += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi. The pairing (T, b) and n are found again before every residual and
     Jacobian (``update``) and held fixed in the derivatives (what is lagged: the normal's rotation and the slip
-    of x*). The master triangles are gathered on every rank (each rank pairs its own slave nodes).
+    of x*). The master triangles are gathered on every rank once (their reference vertices and node indices;
+    each update gathers the displacements of their vertices), each rank pairs its own slave nodes.
 
     ``augmented``: Pi_c = int_slave (k/2) min(g - lambda/k, 0)^2 - lambda^2/(2k) dA with the multiplier lambda
     >= 0 at the slave nodes (the contact pressure per reference area), updated by Uzawa between equilibria
@@ -270,6 +272,12 @@ class MembranePairContact(_NodalContact):
         self._compiled: dict[str, Any] = {}
         self._stamp: np.ndarray | None = None
         self.Pi: PETSc.Mat | None = None
+        self._pi_columns: np.ndarray | None = None
+        #: K_uz, K_zz (made once) and the coupling products (while Pi keeps its pattern), Dirichlet dofs
+        self._matrices: dict[str, PETSc.Mat] = {}
+        self._products: dict[str, PETSc.Mat] = {}
+        self._bc_dofs: tuple | None = None
+        self._vectors: tuple[PETSc.Vec, PETSc.Vec] | None = None  # dPi_c/dz and Pi^T of it
         #: (triangle, barycentric, normal) per slave node of the last pairing; ``frozen``: reuse one
         self.pairing: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.frozen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -295,6 +303,13 @@ class MembranePairContact(_NodalContact):
                                         dtype=np.int64).reshape(-1, 3)
         if self.comm.allreduce(len(cells), op=MPI.SUM) == 0:
             raise ValueError(f"membrane contact: region {self.master!r} has no cell")
+        # the master triangles of every rank, gathered once: their reference vertices and global block indices
+        # (each update gathers only the displacements of their vertices), and each triangle's vertices as rows
+        # of the master's node list (for the vertex normals)
+        parts = self.comm.allgather((x[tri], self.master_global))
+        self._X_tri, self._g_tri = (np.concatenate([p[i] for p in parts]) for i in range(2))
+        nodes, index = np.unique(self._g_tri.ravel(), return_inverse=True)
+        self._n_master_nodes, self._tri_nodes = len(nodes), index.reshape(-1, 3)
 
     def update(self) -> None:
         """Pair every owned slave node with its closest master point at the current u; set X*, n, z and Pi.
@@ -308,29 +323,31 @@ class MembranePairContact(_NodalContact):
         if not self.comm.allreduce(changed, op=MPI.LOR):
             return
         u = current.reshape(-1, 3)
-        X_loc = self.reference[self.master_local]
-        parts = self.comm.allgather((X_loc, X_loc + u[self.master_local], self.master_global))
-        X_tri, x_tri, g_tri = (np.concatenate([p[i] for p in parts]) for i in range(3))
+        X_tri, g_tri = self._X_tri, self._g_tri
+        x_tri = X_tri + np.concatenate(self.comm.allgather(u[self.master_local]))
         slave = self.slave_blocks
         xs = self.reference[slave] + u[slave]
         n, k = len(slave), min(self.neighbours, len(x_tri))
         best_d, best_t, best_b = np.full(n, np.inf), np.zeros(n, dtype=np.int64), np.zeros((n, 3))
         if n:
+            # the k nearest triangles (by centroid) of every slave node, their closest points in one call
             near = np.asarray(cKDTree(x_tri.mean(axis=1)).query(xs, k=k)[1]).reshape(n, k)
-            for j in range(k):
-                closest, bary = closest_points_on_triangles(xs, x_tri[near[:, j]])
-                d = np.linalg.norm(xs - closest, axis=1)
+            closest, bary = closest_points_on_triangles(np.repeat(xs, k, axis=0), x_tri[near.ravel()])
+            dist = np.linalg.norm(np.repeat(xs, k, axis=0) - closest, axis=1).reshape(n, k)
+            bary = bary.reshape(n, k, 3)
+            for j in range(k):  # the first of the nearest within round-off
+                d = dist[:, j]
                 better = d < best_d - 1e-14 * np.maximum(d, 1.0)
-                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
+                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better, j]
         # the master's vertex normals (area-weighted mean of its triangles' normals), interpolated at x*: a
         # normal continuous across the master's edges, so the gap does not jump when x* changes triangle
         face = np.cross(x_tri[:, 1] - x_tri[:, 0], x_tri[:, 2] - x_tri[:, 0])
-        nodes, index = np.unique(g_tri.ravel(), return_inverse=True)
-        vertex = np.zeros((len(nodes), 3))
+        index = self._tri_nodes
+        vertex = np.zeros((self._n_master_nodes, 3))
         for j in range(3):
-            np.add.at(vertex, index.reshape(-1, 3)[:, j], face)
+            np.add.at(vertex, index[:, j], face)
         vertex /= np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-300)
-        normal = np.einsum("ij,ijk->ik", best_b, vertex[index.reshape(-1, 3)[best_t]])
+        normal = np.einsum("ij,ijk->ik", best_b, vertex[index[best_t]])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         if self.frozen is not None:  # the pairing of the last update, z from the current u (derivative checks)
             best_t, best_b, normal = self.frozen
@@ -346,12 +363,12 @@ class MembranePairContact(_NodalContact):
         self._stamp = current.copy()
 
     def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
-        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices (built
-        as CSR: the owned rows, three entries in each slave row)."""
+        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices (CSR: the
+        owned rows, three entries in each slave row). The same nonzero pattern as the last Pi on every rank (the
+        same master nodes per slave node): its values are replaced in place and the coupling products reuse
+        their patterns; else a new Pi. Collective."""
         imap = self.V.dofmap.index_map
         n_local, n_global = imap.size_local * 3, imap.size_global * 3
-        if self.Pi is not None:
-            self.Pi.destroy()
         counts = np.zeros(n_local, dtype=np.int64)
         rows = (3 * self.slave_blocks[:, None] + np.arange(3)).ravel()  # local rows, node-major
         counts[rows] = 3
@@ -359,59 +376,98 @@ class MembranePairContact(_NodalContact):
         cols = (3 * columns[:, None, :] + np.arange(3)[None, :, None]).reshape(-1, 3)[order]
         vals = np.repeat(bary, 3, axis=0)[order]
         indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
+        cols = cols.ravel().astype(PETSc.IntType)
+        same = self.Pi is not None and np.array_equal(cols, self._pi_columns)
+        if self.comm.allreduce(bool(same), op=MPI.LAND):
+            self.Pi.setValuesCSR(indptr, cols, vals.ravel(), addv=PETSc.InsertMode.INSERT_VALUES)
+            self.Pi.assemble()
+            return
+        for m in (self.Pi, *self._products.values()):
+            if m is not None:
+                m.destroy()
+        self._products = {}
+        self._pi_columns = cols
         self.Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)),
-                                        csr=(indptr, cols.ravel().astype(PETSc.IntType), vals.ravel()),
-                                        comm=self.comm)
+                                        csr=(indptr, cols, vals.ravel()), comm=self.comm)
 
     def _form(self, key: str) -> Any:
         if key not in self._compiled:
             self._compiled[key] = fem.form(self._ufl[key])
         return self._compiled[key]
 
-    def _master_force(self) -> PETSc.Vec:
-        """Pi^T dPi_c/dz (owned entries of a new vector). Collective."""
-        self.update()
-        Rz = fem_petsc.assemble_vector(self._form("Rz"))
+    def _master_force(self, pair: bool = True) -> np.ndarray:
+        """Pi^T dPi_c/dz, its owned entries (a view of a vector made once). ``pair``: pair again if u changed
+        (else the caller has). Collective."""
+        if pair:
+            self.update()
+        if self._vectors is None:
+            self._vectors = (fem_petsc.create_vector(self._form("Rz")), self.Pi.createVecRight())
+        Rz, out = self._vectors
+        with Rz.localForm() as local:
+            local.set(0.0)
+        fem_petsc.assemble_vector(Rz, self._form("Rz"))
         Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        out = self.Pi.createVecRight()
         self.Pi.multTranspose(Rz, out)
-        Rz.destroy()
-        return out
+        return out.array_r
 
     def add_residual(self, b: PETSc.Vec) -> None:
-        """b += Pi^T dPi_c/dz (b assembled and reverse-scattered). Collective."""
-        out = self._master_force()
+        """b += Pi^T dPi_c/dz (b assembled and reverse-scattered) at the pairing of the last ``update`` (the
+        Newton solver's before_assembly). Collective."""
+        out = self._master_force(pair=False)
         with b.localForm() as local:
-            local.array[: len(out.array_r)] += out.array_r
-        out.destroy()
+            local.array[: len(out)] += out
 
     def add_jacobian(self, A: PETSc.Mat, bcs: list) -> None:
         """A += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi, the rows and columns of the Dirichlet dofs zeroed. Collective;
-        A is assembled again by the caller."""
-        self.update()
-        Kuz = fem_petsc.assemble_matrix(self._form("Kuz"))
-        Kuz.assemble()
-        Kzz = fem_petsc.assemble_matrix(self._form("Kzz"))
-        Kzz.assemble()
-        C1 = Kuz.matMult(self.Pi)
-        C = C1.copy()
-        C.axpy(1.0, C1.transpose(), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        C.axpy(1.0, Kzz.PtAP(self.Pi), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        imap = self.V.dofmap.index_map
-        owned = imap.size_local * 3
-        dofs = [np.asarray(bc.dof_indices()[0], dtype=np.int64) for bc in bcs]
-        local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
-        local = local[local < owned]
-        glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
-        C.zeroRowsColumns(glob.astype(PETSc.IntType), diag=0.0)
-        # C's owned rows added into A (new nonzeros allocated as the pairing brings them: about 80 ms a Jacobian
-        # at 2000 slave and master rows; MatAXPY with the union pattern is faster on dolfinx 0.5, 4.6 s against
-        # 6.3 s, but leaves a matrix that dolfinx 0.9's next assembly cannot use: DIVERGED_LINEAR_SOLVE)
+        A is assembled again by the caller; the pairing is the last ``update``'s (the Newton solver's
+        before_assembly).
+
+        K_uz and K_zz are assembled into matrices made once; K_uz Pi, its transpose and Pi^T K_zz Pi reuse their
+        matrices (and PETSc's symbolic products) while Pi keeps its pattern (_build_interpolation); each product's
+        owned rows are added into A (new nonzeros allocated as the pairing brings them: MatAXPY with the union
+        pattern leaves a matrix that dolfinx 0.9's next assembly cannot use, DIVERGED_LINEAR_SOLVE)."""
+        K = self._products
+        for key in ("Kuz", "Kzz"):
+            if self._matrices.get(key) is None:
+                self._matrices[key] = fem_petsc.create_matrix(self._form(key))
+            M = self._matrices[key]
+            M.zeroEntries()
+            fem_petsc.assemble_matrix(M, self._form(key))
+            M.assemble()
+        Kuz, Kzz = self._matrices["Kuz"], self._matrices["Kzz"]
+        if not K:
+            K["KuzPi"] = Kuz.matMult(self.Pi)
+            K["transpose"] = K["KuzPi"].transpose(PETSc.Mat())  # (no argument: in place)
+            K["PtKPi"] = Kzz.ptap(self.Pi)
+        else:
+            Kuz.matMult(self.Pi, result=K["KuzPi"])
+            K["KuzPi"].transpose(out=K["transpose"])
+            Kzz.ptap(self.Pi, result=K["PtKPi"])
+        rows, cols = self._dirichlet(bcs)
+        m, n = A.getLocalSize()[0], A.getSize()[1]
+        # the owned rows of the three (A's layout, global columns) summed into one CSR, one insertion into A
+        C = sum(csr_matrix(M.getValuesCSR()[::-1], shape=(m, n)) for M in K.values())
+        C.sum_duplicates()
+        row = np.repeat(np.arange(m), np.diff(C.indptr))
+        values = np.where(rows[row] | np.isin(C.indices, cols), 0.0, C.data)
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        indptr, cols, values = C.getValuesCSR()  # the owned rows (A's layout), global columns
-        A.setValuesCSR(indptr, cols, values, addv=PETSc.InsertMode.ADD_VALUES)
-        for m in (Kuz, Kzz, C1, C):
-            m.destroy()
+        A.setValuesCSR(C.indptr.astype(PETSc.IntType), C.indices.astype(PETSc.IntType), values,
+                       addv=PETSc.InsertMode.ADD_VALUES)
+
+    def _dirichlet(self, bcs: list) -> tuple[np.ndarray, np.ndarray]:
+        """The Dirichlet dofs: a mask over the owned rows and the sorted global indices of every rank's."""
+        key = tuple(id(bc) for bc in bcs)
+        if self._bc_dofs is None or self._bc_dofs[0] != key:
+            imap = self.V.dofmap.index_map
+            owned = imap.size_local * 3
+            dofs = [np.asarray(bc.dof_indices()[0], dtype=np.int64) for bc in bcs]
+            local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
+            local = local[local < owned]
+            glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
+            mask = np.zeros(owned, dtype=bool)
+            mask[local] = True
+            self._bc_dofs = (key, mask, np.unique(np.concatenate(self.comm.allgather(glob))))
+        return self._bc_dofs[1], self._bc_dofs[2]
 
     def nodal_gaps(self) -> np.ndarray:
         """g at the owned slave nodes (paired again if u changed). Collective."""
@@ -433,8 +489,7 @@ class MembranePairContact(_NodalContact):
         g = self.nodal_gaps()
         low = self.comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
         out = self._master_force()
-        master = -np.asarray(self.comm.allreduce(out.array_r.reshape(-1, 3).sum(axis=0), op=MPI.SUM))
-        out.destroy()
+        master = -np.asarray(self.comm.allreduce(out.reshape(-1, 3).sum(axis=0), op=MPI.SUM))
         lumped = self.lumped_area[self.slave_blocks]
         active = self.nodal_pressures() > 0.0
         return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
