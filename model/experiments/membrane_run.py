@@ -40,7 +40,7 @@ from model.experiments.membrane import deformed_points
 from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_json_atomic
 from model.pipeline import Interrupted, StopFlag
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, hencky, radial_orientation
-from model.problem.membrane_contact import MembranePairContact, ObstacleContact
+from model.problem.membrane_contact import MembranePairContact, ObstacleContact, pair_contacts
 from model.solvers.membrane import InflationStep, InflationStopped, inflate, inflate_to_volume
 
 log = logging.getLogger(__name__)
@@ -170,8 +170,9 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]
-    pairs = [MembranePairContact(problem, spec.surface, spec.master, spec.penalty, name=spec.label,
-                                 augmented=spec.augmented) for spec in config.contacts]
+    pairs = [pair for spec in config.contacts
+             for pair in pair_contacts(problem, spec.surface, spec.master, spec.penalty, name=spec.name,
+                                       augmented=spec.augmented, two_pass=spec.two_pass)]
     contacts = [*contacts, *pairs]
     if m.surface in ("disc", "facing_discs"):
         bump = m.bump * m.radius
@@ -189,7 +190,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         "law": {"name": law.name, **m.law_parameters},
         "obstacles": [_obstacle_summary(spec) for spec in config.obstacles],
         "pairs": [{"name": spec.label, "surface": spec.surface, "master": spec.master, "penalty": spec.penalty,
-                   "augmented": spec.augmented} for spec in config.contacts],
+                   "augmented": spec.augmented, "two_pass": spec.two_pass} for spec in config.contacts],
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,
     }

@@ -53,7 +53,8 @@ from model.problem.membrane import MembraneProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MembranePairContact", "ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure"]
+__all__ = ["MembranePairContact", "ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure",
+           "pair_contacts"]
 
 #: the nodal quadrature on a triangle: (A/3) at each vertex (reference triangle of area 1/2)
 VERTEX_RULE = {"quadrature_rule": "custom", "quadrature_degree": 1,
@@ -496,3 +497,28 @@ class MembranePairContact(_NodalContact):
                 "master_force": [float(f) for f in master],
                 "contact_fraction": _area_fraction(self.comm, lumped, active),
                 "active_points": self.comm.allreduce(int(np.sum(active)), op=MPI.SUM)}
+
+
+def pair_contacts(problem: MembraneProblem, slave: str, master: str, k: float, augmented: bool = False,
+                  two_pass: bool = False, name: str | None = None, neighbours: int = 8
+                  ) -> list[MembranePairContact]:
+    """The contact of two membranes (regions ``slave`` and ``master``): one MembranePairContact (one pass: the
+    slave's nodes stay out of the master's triangles, the master's nodes may enter the slave's) or, ``two_pass``
+    (FEBio's two_pass of its sliding contacts), also the master against the slave: each membrane is slave and
+    master in turn, the two passes' energies summed,
+
+        Pi_c = int_slave (k/2) min(g_s, 0)^2 dA + int_master (k/2) min(g_m, 0)^2 dA,
+
+    g_s the slave nodes' gap to the master's triangles and g_m the master nodes' gap to the slave's, each pass
+    with its penalty k (and, ``augmented``, its own multiplier at its slave's nodes), so that neither surface's
+    nodes penetrate the other's triangles on non-matching meshes. Names: ``name`` (default "<slave>-<master>")
+    and, for the second pass, "<name>:reverse" when named, else "<master>-<slave>"."""
+    if two_pass and augmented:
+        raise ValueError("membrane contact: two_pass is penalty only (both membranes' nodes held exactly on the "
+                         "other's triangles over-constrain non-matching meshes: Uzawa stalls)")
+    first = MembranePairContact(problem, slave, master, k, neighbours=neighbours, name=name, augmented=augmented)
+    if not two_pass:
+        return [first]
+    second = MembranePairContact(problem, master, slave, k, neighbours=neighbours,
+                                 name=f"{name}:reverse" if name else None, augmented=augmented)
+    return [first, second]
