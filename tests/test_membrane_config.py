@@ -91,6 +91,10 @@ def test_balloon_in_a_cavity_stops_at_the_contact_fraction(shared_tmp: Path) -> 
     assert last["contact_fraction"] >= 0.5
     assert 1.0 <= last["pressure"] / p_m < 1.015
     assert all(s["contact_fraction"] < 0.5 for s in summary["steps"] if s["pressure"] < last["pressure"])
+    # every equilibrium (growth and bisection) recorded once, the accepted one last
+    pressures = [s["pressure"] for s in summary["steps"]]
+    assert len(set(pressures)) == len(pressures) and last["pressure"] == min(
+        s["pressure"] for s in summary["steps"] if s["contact_fraction"] >= 0.5)
     report = summary["contacts"][0]
     assert report["contact_fraction"] == pytest.approx(last["contact_fraction"], rel=1e-12)
     assert 0.0 < report["max_penetration"] < 2.0 * last["pressure"] / 1.0  # delta ~ lambda^2 (p - p_m) / k
