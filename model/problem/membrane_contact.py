@@ -221,7 +221,9 @@ class MembranePairContact(_NodalContact):
     K += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi. The pairing (T, b) and n are found again before every residual and
     Jacobian (``update``) and held fixed in the derivatives (what is lagged: the normal's rotation and the slip
     of x*). The master triangles are gathered on every rank once (their reference vertices and node indices;
-    each update gathers the displacements of their vertices), each rank pairs its own slave nodes.
+    each update gathers the displacements of their vertices and of the slave nodes) and every rank pairs every
+    slave node (the same pairing everywhere: no scatter of X*, n, z, no reduction to know whether Pi keeps its
+    pattern).
 
     ``augmented``: Pi_c = int_slave (k/2) min(g - lambda/k, 0)^2 - lambda^2/(2k) dA with the multiplier lambda
     >= 0 at the slave nodes (the contact pressure per reference area), updated by Uzawa between equilibria
@@ -249,7 +251,17 @@ class MembranePairContact(_NodalContact):
         owned = V.dofmap.index_map.size_local
         blocks = np.unique(compat.cell_dofs(V.dofmap)[domain.region_cells(slave), :3]).astype(np.int32)
         self.slave_blocks = blocks[blocks < owned]
+        #: the slave nodes of the rank's slave cells, owned first (np.unique: owned indices < ghosts')
+        self.slave_all = blocks
         self.reference = V.tabulate_dof_coordinates()[:, :3]
+        # every rank pairs every slave node (gathered once: reference points and global indices; each update
+        # gathers their displacements with the master's): the same pairing on every rank, so X*, n and z need no
+        # scatter and whether Pi keeps its pattern needs no reduction
+        glob = np.asarray(V.dofmap.index_map.local_to_global(blocks), dtype=np.int64)
+        parts = self.comm.allgather((glob, self.reference[blocks]))
+        self._slave_global, self._slave_first = np.unique(np.concatenate([g for g, _ in parts]), return_index=True)
+        self._slave_reference = np.concatenate([x for _, x in parts])[self._slave_first]
+        self._slave_position = np.searchsorted(self._slave_global, glob)  # slave_all's rows of the global list
         self._master_setup(problem)
         self.X_star, self.contact_normal, self.z = (fem.Function(V, name=n) for n in ("X_star", "normal", "z"))
         self.k = fem.Constant(msh, PETSc.ScalarType(k))
@@ -273,13 +285,13 @@ class MembranePairContact(_NodalContact):
         self._compiled: dict[str, Any] = {}
         self._stamp: np.ndarray | None = None
         self.Pi: PETSc.Mat | None = None
-        self._pi_columns: np.ndarray | None = None
+        self._paired: np.ndarray | None = None  # the triangle of each slave node (global list) in Pi
         #: K_uz, K_zz (made once) and the coupling products (while Pi keeps its pattern), Dirichlet dofs
         self._matrices: dict[str, PETSc.Mat] = {}
         self._products: dict[str, PETSc.Mat] = {}
         self._bc_dofs: tuple | None = None
         self._vectors: tuple[PETSc.Vec, PETSc.Vec] | None = None  # dPi_c/dz and Pi^T of it
-        #: (triangle, barycentric, normal) per slave node of the last pairing; ``frozen``: reuse one
+        #: (triangle, barycentric, normal) per slave node (all ranks') of the last pairing; ``frozen``: reuse one
         self.pairing: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.frozen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._setup(problem, energy, dA)
@@ -321,14 +333,17 @@ class MembranePairContact(_NodalContact):
 
         current = self.problem.u.x.array
         changed = self._stamp is None or not np.array_equal(self._stamp, current)
-        if not self.comm.allreduce(changed, op=MPI.LOR):
-            return
         u = current.reshape(-1, 3)
+        # one collective: whether u changed on any rank, with the displacements of the master triangles and of
+        # the slave nodes
+        slave = self.slave_all
+        parts = self.comm.allgather((changed, u[self.master_local], u[slave]))
+        if not any(c for c, _, _ in parts):
+            return
         X_tri, g_tri = self._X_tri, self._g_tri
-        x_tri = X_tri + np.concatenate(self.comm.allgather(u[self.master_local]))
-        slave = self.slave_blocks
-        xs = self.reference[slave] + u[slave]
-        n, k = len(slave), min(self.neighbours, len(x_tri))
+        x_tri = X_tri + np.concatenate([d for _, d, _ in parts])
+        xs = self._slave_reference + np.concatenate([d for _, _, d in parts])[self._slave_first]
+        n, k = len(xs), min(self.neighbours, len(x_tri))
         best_d, best_t, best_b = np.full(n, np.inf), np.zeros(n, dtype=np.int64), np.zeros((n, 3))
         if n:
             # the k nearest triangles (by centroid) of every slave node, their closest points in one call
@@ -353,21 +368,25 @@ class MembranePairContact(_NodalContact):
         if self.frozen is not None:  # the pairing of the last update, z from the current u (derivative checks)
             best_t, best_b, normal = self.frozen
         self.pairing = (best_t, best_b, normal)
+        same = self.Pi is not None and np.array_equal(best_t, self._paired)  # the same triangles everywhere
+        self._paired = best_t
+        here = self._slave_position
+        best_t, best_b, normal = best_t[here], best_b[here], normal[here]
         values = (np.einsum("ij,ijk->ik", best_b, X_tri[best_t]), normal,
                   np.einsum("ij,ijk->ik", best_b, x_tri[best_t] - X_tri[best_t]))
         for function, value in zip((self.X_star, self.contact_normal, self.z), values, strict=True):
             array = function.x.array.reshape(-1, 3)
             array[:] = 0.0
             array[slave] = value
-            function.x.scatter_forward()
-        self._build_interpolation(best_b, g_tri[best_t])
+        owned = len(self.slave_blocks)
+        self._build_interpolation(best_b[:owned], g_tri[best_t[:owned]], same)
         self._stamp = current.copy()
 
-    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
+    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray, same: bool) -> None:
         """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices (CSR: the
-        owned rows, three entries in each slave row). The same nonzero pattern as the last Pi on every rank (the
-        same master nodes per slave node): its values are replaced in place and the coupling products reuse
-        their patterns; else a new Pi. Collective."""
+        owned rows, three entries in each slave row). ``same`` (the same on every rank): every slave node on the
+        same triangle as at the last Pi, whose values are then replaced in place (the coupling products reuse
+        their patterns); else a new Pi. Collective."""
         imap = self.V.dofmap.index_map
         n_local, n_global = imap.size_local * 3, imap.size_global * 3
         counts = np.zeros(n_local, dtype=np.int64)
@@ -378,8 +397,7 @@ class MembranePairContact(_NodalContact):
         vals = np.repeat(bary, 3, axis=0)[order]
         indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
         cols = cols.ravel().astype(PETSc.IntType)
-        same = self.Pi is not None and np.array_equal(cols, self._pi_columns)
-        if self.comm.allreduce(bool(same), op=MPI.LAND):
+        if same:
             self.Pi.setValuesCSR(indptr, cols, vals.ravel(), addv=PETSc.InsertMode.INSERT_VALUES)
             self.Pi.assemble()
             return
@@ -387,7 +405,6 @@ class MembranePairContact(_NodalContact):
             if m is not None:
                 m.destroy()
         self._products = {}
-        self._pi_columns = cols
         self.Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)),
                                         csr=(indptr, cols, vals.ravel()), comm=self.comm)
 
