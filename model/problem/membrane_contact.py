@@ -45,7 +45,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
-from scipy.sparse import csr_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 
 from forms.obstacles import Obstacle, augmented_lagrangian_energy, contact_pressure, penalty_energy
 from model import compat
@@ -222,8 +222,8 @@ class MembranePairContact(_NodalContact):
     Jacobian (``update``) and held fixed in the derivatives (what is lagged: the normal's rotation and the slip
     of x*). The master triangles are gathered on every rank once (their reference vertices and node indices;
     each update gathers the displacements of their vertices and of the slave nodes) and every rank pairs every
-    slave node (the same pairing everywhere: no scatter of X*, n, z, no reduction to know whether Pi keeps its
-    pattern).
+    slave node (the same pairing everywhere, and the whole Pi on every rank, a scipy matrix: no scatter of X*,
+    n, z; each rank multiplies its owned rows, add_jacobian, _master_force).
 
     ``augmented``: Pi_c = int_slave (k/2) min(g - lambda/k, 0)^2 - lambda^2/(2k) dA with the multiplier lambda
     >= 0 at the slave nodes (the contact pressure per reference area), updated by Uzawa between equilibria
@@ -256,7 +256,7 @@ class MembranePairContact(_NodalContact):
         self.reference = V.tabulate_dof_coordinates()[:, :3]
         # every rank pairs every slave node (gathered once: reference points and global indices; each update
         # gathers their displacements with the master's): the same pairing on every rank, so X*, n and z need no
-        # scatter and whether Pi keeps its pattern needs no reduction
+        # scatter, and every rank holds the whole Pi
         glob = np.asarray(V.dofmap.index_map.local_to_global(blocks), dtype=np.int64)
         parts = self.comm.allgather((glob, self.reference[blocks]))
         self._slave_global, self._slave_first = np.unique(np.concatenate([g for g, _ in parts]), return_index=True)
@@ -284,13 +284,11 @@ class MembranePairContact(_NodalContact):
                      "Kzz": ufl.derivative(dz, self.z, w)}
         self._compiled: dict[str, Any] = {}
         self._stamp: np.ndarray | None = None
-        self.Pi: PETSc.Mat | None = None
-        self._paired: np.ndarray | None = None  # the triangle of each slave node (global list) in Pi
-        #: K_uz, K_zz (made once) and the coupling products (while Pi keeps its pattern), Dirichlet dofs
+        #: K_uz, K_zz (made once), the whole Pi (scipy), the Dirichlet dofs
         self._matrices: dict[str, PETSc.Mat] = {}
-        self._products: dict[str, PETSc.Mat] = {}
+        self._pi_global: Any = None
         self._bc_dofs: tuple | None = None
-        self._vectors: tuple[PETSc.Vec, PETSc.Vec] | None = None  # dPi_c/dz and Pi^T of it
+        self._vector: PETSc.Vec | None = None  # dPi_c/dz
         #: (triangle, barycentric, normal) per slave node (all ranks') of the last pairing; ``frozen``: reuse one
         self.pairing: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.frozen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -368,8 +366,11 @@ class MembranePairContact(_NodalContact):
         if self.frozen is not None:  # the pairing of the last update, z from the current u (derivative checks)
             best_t, best_b, normal = self.frozen
         self.pairing = (best_t, best_b, normal)
-        same = self.Pi is not None and np.array_equal(best_t, self._paired)  # the same triangles everywhere
-        self._paired = best_t
+        # the whole Pi (every slave node's rows, global indices) for the coupling terms
+        N = 3 * self.V.dofmap.index_map.size_global
+        rows = np.repeat((3 * self._slave_global[:, None] + np.arange(3)).ravel(), 3)
+        cols = (3 * g_tri[best_t][:, None, :] + np.arange(3)[None, :, None]).ravel()
+        self._pi_global = csr_matrix((np.repeat(best_b, 3, axis=0).ravel(), (rows, cols)), shape=(N, N))
         here = self._slave_position
         best_t, best_b, normal = best_t[here], best_b[here], normal[here]
         values = (np.einsum("ij,ijk->ik", best_b, X_tri[best_t]), normal,
@@ -378,35 +379,7 @@ class MembranePairContact(_NodalContact):
             array = function.x.array.reshape(-1, 3)
             array[:] = 0.0
             array[slave] = value
-        owned = len(self.slave_blocks)
-        self._build_interpolation(best_b[:owned], g_tri[best_t[:owned]], same)
         self._stamp = current.copy()
-
-    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray, same: bool) -> None:
-        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices (CSR: the
-        owned rows, three entries in each slave row). ``same`` (the same on every rank): every slave node on the
-        same triangle as at the last Pi, whose values are then replaced in place (the coupling products reuse
-        their patterns); else a new Pi. Collective."""
-        imap = self.V.dofmap.index_map
-        n_local, n_global = imap.size_local * 3, imap.size_global * 3
-        counts = np.zeros(n_local, dtype=np.int64)
-        rows = (3 * self.slave_blocks[:, None] + np.arange(3)).ravel()  # local rows, node-major
-        counts[rows] = 3
-        order = np.argsort(rows)
-        cols = (3 * columns[:, None, :] + np.arange(3)[None, :, None]).reshape(-1, 3)[order]
-        vals = np.repeat(bary, 3, axis=0)[order]
-        indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
-        cols = cols.ravel().astype(PETSc.IntType)
-        if same:
-            self.Pi.setValuesCSR(indptr, cols, vals.ravel(), addv=PETSc.InsertMode.INSERT_VALUES)
-            self.Pi.assemble()
-            return
-        for m in (self.Pi, *self._products.values()):
-            if m is not None:
-                m.destroy()
-        self._products = {}
-        self.Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)),
-                                        csr=(indptr, cols, vals.ravel()), comm=self.comm)
 
     def _form(self, key: str) -> Any:
         if key not in self._compiled:
@@ -414,19 +387,24 @@ class MembranePairContact(_NodalContact):
         return self._compiled[key]
 
     def _master_force(self, pair: bool = True) -> np.ndarray:
-        """Pi^T dPi_c/dz, its owned entries (a view of a vector made once). ``pair``: pair again if u changed
-        (else the caller has). Collective."""
+        """Pi^T dPi_c/dz at the owned dofs: each rank's owned rows of dPi_c/dz through its rows of the whole Pi,
+        summed over the ranks (one reduction). ``pair``: pair again if u changed (else the caller has).
+        Collective."""
         if pair:
             self.update()
-        if self._vectors is None:
-            self._vectors = (fem_petsc.create_vector(self._form("Rz")), self.Pi.createVecRight())
-        Rz, out = self._vectors
+        if self._vector is None:
+            self._vector = fem_petsc.create_vector(self._form("Rz"))
+        Rz = self._vector
         with Rz.localForm() as local:
             local.set(0.0)
         fem_petsc.assemble_vector(Rz, self._form("Rz"))
         Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.Pi.multTranspose(Rz, out)
-        return out.array_r
+        imap = self.V.dofmap.index_map
+        start, m = 3 * imap.local_range[0], 3 * imap.size_local
+        mine = np.ascontiguousarray(self._pi_global[start:start + m].T @ Rz.array_r[:m], dtype=np.float64)
+        total = np.empty_like(mine)
+        self.comm.Allreduce(mine, total, op=MPI.SUM)
+        return total[start:start + m]
 
     def add_residual(self, b: PETSc.Vec) -> None:
         """b += Pi^T dPi_c/dz (b assembled and reverse-scattered) at the pairing of the last ``update`` (the
@@ -437,14 +415,15 @@ class MembranePairContact(_NodalContact):
 
     def add_jacobian(self, A: PETSc.Mat, bcs: list) -> None:
         """A += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi, the rows and columns of the Dirichlet dofs zeroed. Collective;
-        A is assembled again by the caller; the pairing is the last ``update``'s (the Newton solver's
-        before_assembly).
+        A is assembled again by the caller (which sends the rows other ranks own); the pairing is the last
+        ``update``'s (the Newton solver's before_assembly).
 
-        K_uz and K_zz are assembled into matrices made once; K_uz Pi, its transpose and Pi^T K_zz Pi reuse their
-        matrices (and PETSc's symbolic products) while Pi keeps its pattern (_build_interpolation); each product's
-        owned rows are added into A (new nonzeros allocated as the pairing brings them: MatAXPY with the union
-        pattern leaves a matrix that dolfinx 0.9's next assembly cannot use, DIVERGED_LINEAR_SOLVE)."""
-        K = self._products
+        K_uz and K_zz are assembled into matrices made once; each rank multiplies its owned rows of them with the
+        whole Pi (every rank has the whole pairing, scipy): K_uz,r Pi and its transpose, Pi_r^T K_zz,r Pi (Pi_r
+        Pi's owned rows; summed over the ranks they are the three terms), no parallel matrix product; the owned
+        rows go into A in one CSR call, the others with MatSetValues to be sent at A's assembly (new nonzeros
+        allocated as the pairing brings them: MatAXPY with the union pattern leaves a matrix that dolfinx 0.9's
+        next assembly cannot use, DIVERGED_LINEAR_SOLVE)."""
         for key in ("Kuz", "Kzz"):
             if self._matrices.get(key) is None:
                 self._matrices[key] = fem_petsc.create_matrix(self._form(key))
@@ -452,28 +431,32 @@ class MembranePairContact(_NodalContact):
             M.zeroEntries()
             fem_petsc.assemble_matrix(M, self._form(key))
             M.assemble()
-        Kuz, Kzz = self._matrices["Kuz"], self._matrices["Kzz"]
-        if not K:
-            K["KuzPi"] = Kuz.matMult(self.Pi)
-            K["transpose"] = K["KuzPi"].transpose(PETSc.Mat())  # (no argument: in place)
-            K["PtKPi"] = Kzz.ptap(self.Pi)
-        else:
-            Kuz.matMult(self.Pi, result=K["KuzPi"])
-            K["KuzPi"].transpose(out=K["transpose"])
-            Kzz.ptap(self.Pi, result=K["PtKPi"])
-        rows, cols = self._dirichlet(bcs)
-        m, n = A.getLocalSize()[0], A.getSize()[1]
-        # the owned rows of the three (A's layout, global columns) summed into one CSR, one insertion into A
-        C = sum(csr_matrix(M.getValuesCSR()[::-1], shape=(m, n)) for M in K.values())
+        m, N = A.getLocalSize()[0], A.getSize()[1]
+        start = A.getOwnershipRange()[0]
+        P = self._pi_global
+        Kuz, Kzz = (csr_matrix(self._matrices[key].getValuesCSR()[::-1], shape=(m, N)) for key in ("Kuz", "Kzz"))
+        C1 = (Kuz @ P).tocoo()  # owned rows (local), global columns
+        C3 = (P[start:start + m].T @ (Kzz @ P)).tocoo()  # global rows and columns
+        C = coo_matrix((np.concatenate([C1.data, C1.data, C3.data]),
+                        (np.concatenate([C1.row + start, C1.col, C3.row]),
+                         np.concatenate([C1.col, C1.row + start, C3.col]))), shape=(N, N)).tocsr()
         C.sum_duplicates()
-        row = np.repeat(np.arange(m), np.diff(C.indptr))
-        values = np.where(rows[row] | np.isin(C.indices, cols), 0.0, C.data)
+        dirichlet = np.zeros(N, dtype=bool)
+        dirichlet[self._dirichlet(bcs)] = True
+        row = np.repeat(np.arange(N), np.diff(C.indptr))
+        C.data[dirichlet[row] | dirichlet[C.indices]] = 0.0
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        A.setValuesCSR(C.indptr.astype(PETSc.IntType), C.indices.astype(PETSc.IntType), values,
+        owned = C[start:start + m]
+        A.setValuesCSR(owned.indptr.astype(PETSc.IntType), owned.indices.astype(PETSc.IntType), owned.data,
                        addv=PETSc.InsertMode.ADD_VALUES)
+        others = np.flatnonzero(np.diff(C.indptr))
+        for i in others[(others < start) | (others >= start + m)]:
+            a, b = C.indptr[i], C.indptr[i + 1]
+            A.setValues([int(i)], C.indices[a:b].astype(PETSc.IntType), C.data[a:b],
+                        addv=PETSc.InsertMode.ADD_VALUES)
 
-    def _dirichlet(self, bcs: list) -> tuple[np.ndarray, np.ndarray]:
-        """The Dirichlet dofs: a mask over the owned rows and the sorted global indices of every rank's."""
+    def _dirichlet(self, bcs: list) -> np.ndarray:
+        """The global indices of every rank's Dirichlet dofs (sorted)."""
         key = tuple(id(bc) for bc in bcs)
         if self._bc_dofs is None or self._bc_dofs[0] != key:
             imap = self.V.dofmap.index_map
@@ -482,10 +465,8 @@ class MembranePairContact(_NodalContact):
             local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
             local = local[local < owned]
             glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
-            mask = np.zeros(owned, dtype=bool)
-            mask[local] = True
-            self._bc_dofs = (key, mask, np.unique(np.concatenate(self.comm.allgather(glob))))
-        return self._bc_dofs[1], self._bc_dofs[2]
+            self._bc_dofs = (key, np.unique(np.concatenate(self.comm.allgather(glob))))
+        return self._bc_dofs[1]
 
     def nodal_gaps(self) -> np.ndarray:
         """g at the owned slave nodes (paired again if u changed). Collective."""
