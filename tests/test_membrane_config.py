@@ -91,6 +91,10 @@ def test_balloon_in_a_cavity_stops_at_the_contact_fraction(shared_tmp: Path) -> 
     assert last["contact_fraction"] >= 0.5
     assert 1.0 <= last["pressure"] / p_m < 1.015
     assert all(s["contact_fraction"] < 0.5 for s in summary["steps"] if s["pressure"] < last["pressure"])
+    # every equilibrium (growth and bisection) recorded once, the accepted one last
+    pressures = [s["pressure"] for s in summary["steps"]]
+    assert len(set(pressures)) == len(pressures) and last["pressure"] == min(
+        s["pressure"] for s in summary["steps"] if s["contact_fraction"] >= 0.5)
     report = summary["contacts"][0]
     assert report["contact_fraction"] == pytest.approx(last["contact_fraction"], rel=1e-12)
     assert 0.0 < report["max_penetration"] < 2.0 * last["pressure"] / 1.0  # delta ~ lambda^2 (p - p_m) / k
@@ -188,7 +192,7 @@ def test_discs_example_action_reaction_and_the_rigid_plane(shared_tmp: Path) -> 
     augmented = _run_file(DISCS, shared_tmp / "discs_al", {"contact": [pair], "inflation.pressures": [6e-3],
                                                           "output.xdmf": False})
     assert augmented["pairs"] == [{"name": "lower-upper", "surface": "lower", "master": "upper",
-                                   "penalty": 10.0, "augmented": True}]
+                                   "penalty": 10.0, "augmented": True, "two_pass": False}]
     al = augmented["steps"][-1]["pairs"][0]
     assert al["max_penetration"] <= 1e-9
     assert np.allclose(al["master_force"], -np.asarray(al["force"]), rtol=0, atol=1e-12)
@@ -197,6 +201,23 @@ def test_discs_example_action_reaction_and_the_rigid_plane(shared_tmp: Path) -> 
 
 
 _PAIR = {"surface": "lower", "master": "upper", "penalty": 10.0}
+
+
+def test_discs_two_pass_from_the_config(shared_tmp: Path) -> None:
+    """two_pass = true: both passes recorded per step (lower-upper, then upper-lower), neither membrane's nodes
+    penetrate the other's triangles by more than 2 p / k, each membrane's force (its pass as slave plus the other
+    pass's reaction) balances the other's (tests/test_membrane_contact.py: the rigid-plane comparison)."""
+    summary = _run_file(DISCS, shared_tmp / "discs_two_pass", {"contact": [{**_PAIR, "two_pass": True}],
+                                                               "output.xdmf": False, "output.vtu": False})
+    assert summary["status"] == "completed" and summary["pairs"][0]["two_pass"] is True
+    first, second = summary["steps"][-1]["pairs"]
+    assert (first["pair"], second["pair"]) == ("lower-upper", "upper-lower")
+    assert [c["pair"] for c in summary["contacts"]] == ["lower-upper", "upper-lower"]
+    for report in (first, second):
+        assert 0.0 < report["max_penetration"] < 2 * 6e-3 / 10.0
+    lower = np.asarray(first["force"]) + np.asarray(second["master_force"])
+    upper = np.asarray(second["force"]) + np.asarray(first["master_force"])
+    assert np.allclose(lower, -upper, rtol=0, atol=1e-12) and lower[2] < 0
 
 
 @pytest.mark.parametrize(("overrides", "message"), [
@@ -209,6 +230,9 @@ _PAIR = {"surface": "lower", "master": "upper", "penalty": 10.0}
     ({"contact": [{**_PAIR, "penalty": "stiff"}]}, r"^contact\[0\]\.penalty: "),
     ({"contact": [{**_PAIR, "tolerance": 1e-6}]}, r"^contact\[0\]\.tolerance: only applies with augmented"),
     ({"contact": [{**_PAIR, "slave": "lower"}]}, r"^contact\[0\]\.slave: unknown key"),
+    ({"contact": [{**_PAIR, "two_pass": "yes"}]}, r"^contact\[0\]\.two_pass: "),
+    ({"contact": [{**_PAIR, "two_pass": True, "augmented": True}]},
+     r"^contact\[0\]\.two_pass: not with augmented = true"),
     ({"membrane.gap": None}, r"^membrane\.gap: missing"),
     ({"membrane.upper_size": 0.0}, r"^membrane\.upper_size: 0\.0 is out of range, must be > 0$"),
 ])

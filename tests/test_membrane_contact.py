@@ -20,7 +20,7 @@ from meshes.membrane import (
 )
 from model.domain.distribute import build_domain
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, radial_orientation
-from model.problem.membrane_contact import MembranePairContact, ObstacleContact, contact_fraction
+from model.problem.membrane_contact import MembranePairContact, ObstacleContact, contact_fraction, pair_contacts
 from model.solvers.membrane import inflate, inflate_to_volume
 
 COMM = MPI.COMM_WORLD
@@ -287,6 +287,42 @@ def test_two_membranes_on_non_matching_meshes():
     (force, fraction), (force_fine, fraction_fine) = errors
     assert abs(force) < 5e-3 and abs(force_fine) < 0.3 * abs(force)
     assert abs(fraction) < 0.12 and abs(fraction_fine) < 0.6 * abs(fraction)
+
+
+def test_two_pass_on_non_matching_meshes():
+    """Two passes (pair_contacts(two_pass=True), FEBio's two_pass): the discs of the non-matching meshes (lower
+    0.2, upper 0.15, H = 0.8, k = 10 a pass) pressed together. One pass (lower the slave) keeps the lower's nodes
+    out of the upper's triangles but not the upper's nodes out of the lower's (measured after the solve by the
+    reverse pairing: 1.55e-2 against the slave's 9.1e-4); with two passes neither penetrates by more than
+    2 p / k (measured 6.1e-4 and 8.3e-4). Each membrane's force (its pass as slave plus the other pass's reaction)
+    balances the other's, and lies between the rigid-plane forces of the two meshes with penalty 4k (each pass
+    pushes with k g, g counting both penetrations: measured -3.8875e-3 between -3.8558e-3 (0.2) and -3.9020e-3
+    (0.15)). Newton within its default 40 iterations (measured 7, 13, 17)."""
+    H, k, bump = 0.8, 10.0, 0.3
+    pressures = [2e-3, 4e-3, 6e-3]
+    problem = _pressed_discs(H, bump, 0.2, 0.15)
+    (one,) = pair_contacts(problem, "lower", "upper", k)
+    inflate(problem, pressures)
+    slave_only = one.report()["max_penetration"]
+    master_nodes = MembranePairContact(problem, "upper", "lower", k).report()["max_penetration"]  # a probe
+    assert master_nodes > 10 * slave_only > 0  # measured 1.55e-2 against 9.1e-4
+
+    problem = _pressed_discs(H, bump, 0.2, 0.15)
+    passes = pair_contacts(problem, "lower", "upper", k, two_pass=True)
+    assert [p.name for p in passes] == ["lower-upper", "upper-lower"]
+    steps = inflate(problem, pressures)
+    assert max(s.iterations for s in steps) <= 25
+    first, second = (p.report() for p in passes)
+    for report in (first, second):
+        assert 0.0 < report["max_penetration"] < 2 * pressures[-1] / k and report["contact_fraction"] > 0.1
+        assert np.allclose(report["master_force"], -np.asarray(report["force"]), atol=1e-12)
+    lower = np.asarray(first["force"]) + np.asarray(second["master_force"])
+    upper = np.asarray(second["force"]) + np.asarray(first["master_force"])
+    assert np.allclose(lower, -upper, atol=1e-12)
+    coarse, fine = (_against_plane(size, H, bump, 4 * k, pressures).report()["force"][2] for size in (0.2, 0.15))
+    assert coarse > lower[2] > fine  # all negative
+    with pytest.raises(ValueError, match="two_pass is penalty only"):
+        pair_contacts(problem, "lower", "upper", k, augmented=True, two_pass=True)
 
 
 def test_pair_contact_jacobian_with_the_pairing_held():

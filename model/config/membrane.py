@@ -225,7 +225,9 @@ class ObstacleSection(Section):
 class ContactSection(Section):
     """[[contact]]: penalty contact between two membranes of the surface (two regions, e.g. facing_discs' lower
     and upper): the ``surface`` region's nodes stay on the side of the ``master`` region its normal points to
-    (model.problem.membrane_contact.MembranePairContact; one pass: pick the finer mesh as ``surface``)."""
+    (model.problem.membrane_contact.MembranePairContact; one pass: pick the finer mesh as ``surface``;
+    ``two_pass``: also the master's nodes against the surface's triangles, model.problem.membrane_contact
+    .pair_contacts)."""
 
     name: Name | None = key("a name for the summary (default: \"<surface>-<master>\")", default=None)
     surface: Name = key("the slave region: its nodes are checked against the master's triangles")
@@ -236,6 +238,9 @@ class ContactSection(Section):
                           "equilibrium until max |min(g, lambda/k)| <= tolerance", default=False)
     tolerance: Positive | None = key("augmented only: the Uzawa tolerance on max |min(g, lambda/k)| (default "
                                      "1e-9; with several contacts the smallest)", "m (length)", default=None)
+    two_pass: Flag = key("two passes (FEBio's two_pass): each membrane slave and master in turn, the two "
+                         "penalty energies (each with this penalty) summed, so that neither membrane's nodes enter "
+                         "the other's triangles on non-matching meshes; penalty only", default=False)
 
     @model_validator(mode="after")
     def _pair(self) -> ContactSection:
@@ -243,6 +248,9 @@ class ContactSection(Section):
             fail(f"the same region as surface ({self.surface!r}): a contact pairs two membranes", "master")
         if self.tolerance is not None and not self.augmented:
             fail("only applies with augmented = true", "tolerance")
+        if self.two_pass and self.augmented:
+            fail("not with augmented = true (both membranes' nodes held exactly on the other's triangles "
+                 "over-constrain non-matching meshes: Uzawa stalls)", "two_pass")
         return self
 
     @property

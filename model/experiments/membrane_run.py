@@ -40,7 +40,7 @@ from model.experiments.membrane import deformed_points
 from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_json_atomic
 from model.pipeline import Interrupted, StopFlag
 from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, hencky, radial_orientation
-from model.problem.membrane_contact import MembranePairContact, ObstacleContact
+from model.problem.membrane_contact import MembranePairContact, ObstacleContact, pair_contacts
 from model.solvers.membrane import InflationStep, InflationStopped, inflate, inflate_to_volume
 
 log = logging.getLogger(__name__)
@@ -62,7 +62,12 @@ def _orientation(config: MembraneRunConfig) -> Any:
         return radial_orientation()
     if m.surface == "disc":
         return axis_orientation()
-    return lambda c: np.where(c[:, 2:3] < m.gap / 2, 1.0, -1.0) * np.array([0.0, 0.0, 1.0])
+    return lambda c: _facing_side(c[:, 2:3], m.gap) * np.array([0.0, 0.0, 1.0])
+
+
+def _facing_side(z: np.ndarray, gap: float) -> np.ndarray:
+    """facing_discs: +1 on the lower disc (z < gap/2), -1 on the upper: the direction towards the other one."""
+    return np.where(z < gap / 2, 1.0, -1.0)
 
 
 def _pair_record(pair: MembranePairContact) -> dict[str, Any]:
@@ -170,13 +175,13 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]
-    pairs = [MembranePairContact(problem, spec.surface, spec.master, spec.penalty, name=spec.label,
-                                 augmented=spec.augmented) for spec in config.contacts]
+    pairs = [pair for spec in config.contacts
+             for pair in pair_contacts(problem, spec.surface, spec.master, spec.penalty, name=spec.name,
+                                       augmented=spec.augmented, two_pass=spec.two_pass)]
     contacts = [*contacts, *pairs]
     if m.surface in ("disc", "facing_discs"):
         bump = m.bump * m.radius
-        side = (lambda x: np.where(x[2] < m.gap / 2, 1.0, -1.0)) if m.surface == "facing_discs" \
-            else (lambda x: 1.0)
+        side = (lambda x: _facing_side(x[2], m.gap)) if m.surface == "facing_discs" else (lambda x: 1.0)
         problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0],
                                                    side(x) * bump * (1 - (x[0]**2 + x[1]**2) / m.radius**2)]))
     units = config.units
@@ -189,7 +194,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         "law": {"name": law.name, **m.law_parameters},
         "obstacles": [_obstacle_summary(spec) for spec in config.obstacles],
         "pairs": [{"name": spec.label, "surface": spec.surface, "master": spec.master, "penalty": spec.penalty,
-                   "augmented": spec.augmented} for spec in config.contacts],
+                   "augmented": spec.augmented, "two_pass": spec.two_pass} for spec in config.contacts],
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,
     }
@@ -225,10 +230,12 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         else:
             dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
             signals = [0]
+            found: list[InflationStep] = []  # the equilibria recorded, in summary["steps"]'s order
 
             def on_step(step: InflationStep) -> bool:
-                # every equilibrium of the growth (its state is problem.u now): recorded and saved, and the
+                # every equilibrium of the growth (its state is problem.u now): recorded once and saved, and the
                 # signals checked between the steps
+                found.append(step)
                 summary["steps"].append(_step_record(step, problem, config, law, rest_volume, pairs))
                 signals[0] = stop.check(comm)
                 if not signals[0]:
@@ -242,11 +249,10 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
             except InflationStopped as stopped:
                 writer.write(stopped.steps[-1].pressure)
                 raise interrupted(signals[0], len(stopped.steps), stopped.steps[-1].pressure) from None
-            # the last step is the state left in the problem; the others are recorded as they were found
-            summary["steps"] = [_step_record(s, problem, config, law, rest_volume, pairs) for s in steps]
-            for record in summary["steps"][:-1]:
-                record.pop("centre_deflection", None)
-                record.pop("pairs", None)
+            # each equilibrium was recorded once, as it was found; the accepted one (the state left in the
+            # problem: a contact-fraction stop's bisection may have tried a lower pressure after it) goes last
+            accepted = next(i for i in range(len(found) - 1, -1, -1) if found[i] is steps[-1])
+            summary["steps"].append(summary["steps"].pop(accepted))
             writer.write(steps[-1].pressure)
     except RuntimeError as err:
         error = str(err)

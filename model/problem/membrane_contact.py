@@ -45,6 +45,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
+from scipy.sparse import coo_matrix, csr_matrix
 
 from forms.obstacles import Obstacle, augmented_lagrangian_energy, contact_pressure, penalty_energy
 from model import compat
@@ -52,7 +53,8 @@ from model.problem.membrane import MembraneProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MembranePairContact", "ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure"]
+__all__ = ["MembranePairContact", "ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure",
+           "pair_contacts"]
 
 #: the nodal quadrature on a triangle: (A/3) at each vertex (reference triangle of area 1/2)
 VERTEX_RULE = {"quadrature_rule": "custom", "quadrature_degree": 1,
@@ -218,7 +220,10 @@ class MembranePairContact(_NodalContact):
     derives every term and the Newton solver (model.solvers.membrane) adds R += Pi^T dPi_c/dz and
     K += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi. The pairing (T, b) and n are found again before every residual and
     Jacobian (``update``) and held fixed in the derivatives (what is lagged: the normal's rotation and the slip
-    of x*). The master triangles are gathered on every rank (each rank pairs its own slave nodes).
+    of x*). The master triangles are gathered on every rank once (their reference vertices and node indices;
+    each update gathers the displacements of their vertices and of the slave nodes) and every rank pairs every
+    slave node (the same pairing everywhere, and the whole Pi on every rank, a scipy matrix: no scatter of X*,
+    n, z; each rank multiplies its owned rows, add_jacobian, _master_force).
 
     ``augmented``: Pi_c = int_slave (k/2) min(g - lambda/k, 0)^2 - lambda^2/(2k) dA with the multiplier lambda
     >= 0 at the slave nodes (the contact pressure per reference area), updated by Uzawa between equilibria
@@ -246,7 +251,17 @@ class MembranePairContact(_NodalContact):
         owned = V.dofmap.index_map.size_local
         blocks = np.unique(compat.cell_dofs(V.dofmap)[domain.region_cells(slave), :3]).astype(np.int32)
         self.slave_blocks = blocks[blocks < owned]
+        #: the slave nodes of the rank's slave cells, owned first (np.unique: owned indices < ghosts')
+        self.slave_all = blocks
         self.reference = V.tabulate_dof_coordinates()[:, :3]
+        # every rank pairs every slave node (gathered once: reference points and global indices; each update
+        # gathers their displacements with the master's): the same pairing on every rank, so X*, n and z need no
+        # scatter, and every rank holds the whole Pi
+        glob = np.asarray(V.dofmap.index_map.local_to_global(blocks), dtype=np.int64)
+        parts = self.comm.allgather((glob, self.reference[blocks]))
+        self._slave_global, self._slave_first = np.unique(np.concatenate([g for g, _ in parts]), return_index=True)
+        self._slave_reference = np.concatenate([x for _, x in parts])[self._slave_first]
+        self._slave_position = np.searchsorted(self._slave_global, glob)  # slave_all's rows of the global list
         self._master_setup(problem)
         self.X_star, self.contact_normal, self.z = (fem.Function(V, name=n) for n in ("X_star", "normal", "z"))
         self.k = fem.Constant(msh, PETSc.ScalarType(k))
@@ -269,8 +284,12 @@ class MembranePairContact(_NodalContact):
                      "Kzz": ufl.derivative(dz, self.z, w)}
         self._compiled: dict[str, Any] = {}
         self._stamp: np.ndarray | None = None
-        self.Pi: PETSc.Mat | None = None
-        #: (triangle, barycentric, normal) per slave node of the last pairing; ``frozen``: reuse one
+        #: K_uz, K_zz (made once), the whole Pi (scipy), the Dirichlet dofs
+        self._matrices: dict[str, PETSc.Mat] = {}
+        self._pi_global: Any = None
+        self._bc_dofs: tuple | None = None
+        self._vector: PETSc.Vec | None = None  # dPi_c/dz
+        #: (triangle, barycentric, normal) per slave node (all ranks') of the last pairing; ``frozen``: reuse one
         self.pairing: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.frozen: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._setup(problem, energy, dA)
@@ -295,6 +314,13 @@ class MembranePairContact(_NodalContact):
                                         dtype=np.int64).reshape(-1, 3)
         if self.comm.allreduce(len(cells), op=MPI.SUM) == 0:
             raise ValueError(f"membrane contact: region {self.master!r} has no cell")
+        # the master triangles of every rank, gathered once: their reference vertices and global block indices
+        # (each update gathers only the displacements of their vertices), and each triangle's vertices as rows
+        # of the master's node list (for the vertex normals)
+        parts = self.comm.allgather((x[tri], self.master_global))
+        self._X_tri, self._g_tri = (np.concatenate([p[i] for p in parts]) for i in range(2))
+        nodes, index = np.unique(self._g_tri.ravel(), return_inverse=True)
+        self._n_master_nodes, self._tri_nodes = len(nodes), index.reshape(-1, 3)
 
     def update(self) -> None:
         """Pair every owned slave node with its closest master point at the current u; set X*, n, z and Pi.
@@ -305,113 +331,142 @@ class MembranePairContact(_NodalContact):
 
         current = self.problem.u.x.array
         changed = self._stamp is None or not np.array_equal(self._stamp, current)
-        if not self.comm.allreduce(changed, op=MPI.LOR):
-            return
         u = current.reshape(-1, 3)
-        X_loc = self.reference[self.master_local]
-        parts = self.comm.allgather((X_loc, X_loc + u[self.master_local], self.master_global))
-        X_tri, x_tri, g_tri = (np.concatenate([p[i] for p in parts]) for i in range(3))
-        slave = self.slave_blocks
-        xs = self.reference[slave] + u[slave]
-        n, k = len(slave), min(self.neighbours, len(x_tri))
+        # one collective: whether u changed on any rank, with the displacements of the master triangles and of
+        # the slave nodes
+        slave = self.slave_all
+        parts = self.comm.allgather((changed, u[self.master_local], u[slave]))
+        if not any(c for c, _, _ in parts):
+            return
+        X_tri, g_tri = self._X_tri, self._g_tri
+        x_tri = X_tri + np.concatenate([d for _, d, _ in parts])
+        xs = self._slave_reference + np.concatenate([d for _, _, d in parts])[self._slave_first]
+        n, k = len(xs), min(self.neighbours, len(x_tri))
         best_d, best_t, best_b = np.full(n, np.inf), np.zeros(n, dtype=np.int64), np.zeros((n, 3))
         if n:
+            # the k nearest triangles (by centroid) of every slave node, their closest points in one call
             near = np.asarray(cKDTree(x_tri.mean(axis=1)).query(xs, k=k)[1]).reshape(n, k)
-            for j in range(k):
-                closest, bary = closest_points_on_triangles(xs, x_tri[near[:, j]])
-                d = np.linalg.norm(xs - closest, axis=1)
+            closest, bary = closest_points_on_triangles(np.repeat(xs, k, axis=0), x_tri[near.ravel()])
+            dist = np.linalg.norm(np.repeat(xs, k, axis=0) - closest, axis=1).reshape(n, k)
+            bary = bary.reshape(n, k, 3)
+            for j in range(k):  # the first of the nearest within round-off
+                d = dist[:, j]
                 better = d < best_d - 1e-14 * np.maximum(d, 1.0)
-                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
+                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better, j]
         # the master's vertex normals (area-weighted mean of its triangles' normals), interpolated at x*: a
         # normal continuous across the master's edges, so the gap does not jump when x* changes triangle
         face = np.cross(x_tri[:, 1] - x_tri[:, 0], x_tri[:, 2] - x_tri[:, 0])
-        nodes, index = np.unique(g_tri.ravel(), return_inverse=True)
-        vertex = np.zeros((len(nodes), 3))
+        index = self._tri_nodes
+        vertex = np.zeros((self._n_master_nodes, 3))
         for j in range(3):
-            np.add.at(vertex, index.reshape(-1, 3)[:, j], face)
+            np.add.at(vertex, index[:, j], face)
         vertex /= np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-300)
-        normal = np.einsum("ij,ijk->ik", best_b, vertex[index.reshape(-1, 3)[best_t]])
+        normal = np.einsum("ij,ijk->ik", best_b, vertex[index[best_t]])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         if self.frozen is not None:  # the pairing of the last update, z from the current u (derivative checks)
             best_t, best_b, normal = self.frozen
         self.pairing = (best_t, best_b, normal)
+        # the whole Pi (every slave node's rows, global indices) for the coupling terms
+        N = 3 * self.V.dofmap.index_map.size_global
+        rows = np.repeat((3 * self._slave_global[:, None] + np.arange(3)).ravel(), 3)
+        cols = (3 * g_tri[best_t][:, None, :] + np.arange(3)[None, :, None]).ravel()
+        self._pi_global = csr_matrix((np.repeat(best_b, 3, axis=0).ravel(), (rows, cols)), shape=(N, N))
+        here = self._slave_position
+        best_t, best_b, normal = best_t[here], best_b[here], normal[here]
         values = (np.einsum("ij,ijk->ik", best_b, X_tri[best_t]), normal,
                   np.einsum("ij,ijk->ik", best_b, x_tri[best_t] - X_tri[best_t]))
         for function, value in zip((self.X_star, self.contact_normal, self.z), values, strict=True):
             array = function.x.array.reshape(-1, 3)
             array[:] = 0.0
             array[slave] = value
-            function.x.scatter_forward()
-        self._build_interpolation(best_b, g_tri[best_t])
         self._stamp = current.copy()
-
-    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
-        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices (built
-        as CSR: the owned rows, three entries in each slave row)."""
-        imap = self.V.dofmap.index_map
-        n_local, n_global = imap.size_local * 3, imap.size_global * 3
-        if self.Pi is not None:
-            self.Pi.destroy()
-        counts = np.zeros(n_local, dtype=np.int64)
-        rows = (3 * self.slave_blocks[:, None] + np.arange(3)).ravel()  # local rows, node-major
-        counts[rows] = 3
-        order = np.argsort(rows)
-        cols = (3 * columns[:, None, :] + np.arange(3)[None, :, None]).reshape(-1, 3)[order]
-        vals = np.repeat(bary, 3, axis=0)[order]
-        indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
-        self.Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)),
-                                        csr=(indptr, cols.ravel().astype(PETSc.IntType), vals.ravel()),
-                                        comm=self.comm)
 
     def _form(self, key: str) -> Any:
         if key not in self._compiled:
             self._compiled[key] = fem.form(self._ufl[key])
         return self._compiled[key]
 
-    def _master_force(self) -> PETSc.Vec:
-        """Pi^T dPi_c/dz (owned entries of a new vector). Collective."""
-        self.update()
-        Rz = fem_petsc.assemble_vector(self._form("Rz"))
+    def _master_force(self, pair: bool = True) -> np.ndarray:
+        """Pi^T dPi_c/dz at the owned dofs: each rank's owned rows of dPi_c/dz through its rows of the whole Pi,
+        summed over the ranks (one reduction). ``pair``: pair again if u changed (else the caller has).
+        Collective."""
+        if pair:
+            self.update()
+        if self._vector is None:
+            self._vector = fem_petsc.create_vector(self._form("Rz"))
+        Rz = self._vector
+        with Rz.localForm() as local:
+            local.set(0.0)
+        fem_petsc.assemble_vector(Rz, self._form("Rz"))
         Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        out = self.Pi.createVecRight()
-        self.Pi.multTranspose(Rz, out)
-        Rz.destroy()
-        return out
+        imap = self.V.dofmap.index_map
+        start, m = 3 * imap.local_range[0], 3 * imap.size_local
+        mine = np.ascontiguousarray(self._pi_global[start:start + m].T @ Rz.array_r[:m], dtype=np.float64)
+        total = np.empty_like(mine)
+        self.comm.Allreduce(mine, total, op=MPI.SUM)
+        return total[start:start + m]
 
     def add_residual(self, b: PETSc.Vec) -> None:
-        """b += Pi^T dPi_c/dz (b assembled and reverse-scattered). Collective."""
-        out = self._master_force()
+        """b += Pi^T dPi_c/dz (b assembled and reverse-scattered) at the pairing of the last ``update`` (the
+        Newton solver's before_assembly). Collective."""
+        out = self._master_force(pair=False)
         with b.localForm() as local:
-            local.array[: len(out.array_r)] += out.array_r
-        out.destroy()
+            local.array[: len(out)] += out
 
     def add_jacobian(self, A: PETSc.Mat, bcs: list) -> None:
         """A += K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi, the rows and columns of the Dirichlet dofs zeroed. Collective;
-        A is assembled again by the caller."""
-        self.update()
-        Kuz = fem_petsc.assemble_matrix(self._form("Kuz"))
-        Kuz.assemble()
-        Kzz = fem_petsc.assemble_matrix(self._form("Kzz"))
-        Kzz.assemble()
-        C1 = Kuz.matMult(self.Pi)
-        C = C1.copy()
-        C.axpy(1.0, C1.transpose(), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        C.axpy(1.0, Kzz.PtAP(self.Pi), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        imap = self.V.dofmap.index_map
-        owned = imap.size_local * 3
-        dofs = [np.asarray(bc.dof_indices()[0], dtype=np.int64) for bc in bcs]
-        local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
-        local = local[local < owned]
-        glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
-        C.zeroRowsColumns(glob.astype(PETSc.IntType), diag=0.0)
-        # C's owned rows added into A (new nonzeros allocated as the pairing brings them: about 80 ms a Jacobian
-        # at 2000 slave and master rows; MatAXPY with the union pattern is faster on dolfinx 0.5, 4.6 s against
-        # 6.3 s, but leaves a matrix that dolfinx 0.9's next assembly cannot use: DIVERGED_LINEAR_SOLVE)
+        A is assembled again by the caller (which sends the rows other ranks own); the pairing is the last
+        ``update``'s (the Newton solver's before_assembly).
+
+        K_uz and K_zz are assembled into matrices made once; each rank multiplies its owned rows of them with the
+        whole Pi (every rank has the whole pairing, scipy): K_uz,r Pi and its transpose, Pi_r^T K_zz,r Pi (Pi_r
+        Pi's owned rows; summed over the ranks they are the three terms), no parallel matrix product; the owned
+        rows go into A in one CSR call, the others with MatSetValues to be sent at A's assembly (new nonzeros
+        allocated as the pairing brings them: MatAXPY with the union pattern leaves a matrix that dolfinx 0.9's
+        next assembly cannot use, DIVERGED_LINEAR_SOLVE)."""
+        for key in ("Kuz", "Kzz"):
+            if self._matrices.get(key) is None:
+                self._matrices[key] = fem_petsc.create_matrix(self._form(key))
+            M = self._matrices[key]
+            M.zeroEntries()
+            fem_petsc.assemble_matrix(M, self._form(key))
+            M.assemble()
+        m, N = A.getLocalSize()[0], A.getSize()[1]
+        start = A.getOwnershipRange()[0]
+        P = self._pi_global
+        Kuz, Kzz = (csr_matrix(self._matrices[key].getValuesCSR()[::-1], shape=(m, N)) for key in ("Kuz", "Kzz"))
+        C1 = (Kuz @ P).tocoo()  # owned rows (local), global columns
+        C3 = (P[start:start + m].T @ (Kzz @ P)).tocoo()  # global rows and columns
+        C = coo_matrix((np.concatenate([C1.data, C1.data, C3.data]),
+                        (np.concatenate([C1.row + start, C1.col, C3.row]),
+                         np.concatenate([C1.col, C1.row + start, C3.col]))), shape=(N, N)).tocsr()
+        C.sum_duplicates()
+        dirichlet = np.zeros(N, dtype=bool)
+        dirichlet[self._dirichlet(bcs)] = True
+        row = np.repeat(np.arange(N), np.diff(C.indptr))
+        C.data[dirichlet[row] | dirichlet[C.indices]] = 0.0
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        indptr, cols, values = C.getValuesCSR()  # the owned rows (A's layout), global columns
-        A.setValuesCSR(indptr, cols, values, addv=PETSc.InsertMode.ADD_VALUES)
-        for m in (Kuz, Kzz, C1, C):
-            m.destroy()
+        owned = C[start:start + m]
+        A.setValuesCSR(owned.indptr.astype(PETSc.IntType), owned.indices.astype(PETSc.IntType), owned.data,
+                       addv=PETSc.InsertMode.ADD_VALUES)
+        others = np.flatnonzero(np.diff(C.indptr))
+        for i in others[(others < start) | (others >= start + m)]:
+            a, b = C.indptr[i], C.indptr[i + 1]
+            A.setValues([int(i)], C.indices[a:b].astype(PETSc.IntType), C.data[a:b],
+                        addv=PETSc.InsertMode.ADD_VALUES)
+
+    def _dirichlet(self, bcs: list) -> np.ndarray:
+        """The global indices of every rank's Dirichlet dofs (sorted)."""
+        key = tuple(id(bc) for bc in bcs)
+        if self._bc_dofs is None or self._bc_dofs[0] != key:
+            imap = self.V.dofmap.index_map
+            owned = imap.size_local * 3
+            dofs = [np.asarray(bc.dof_indices()[0], dtype=np.int64) for bc in bcs]
+            local = np.unique(np.concatenate(dofs)) if dofs else np.empty(0, dtype=np.int64)
+            local = local[local < owned]
+            glob = np.asarray(imap.local_to_global((local // 3).astype(np.int32)), dtype=np.int64) * 3 + local % 3
+            self._bc_dofs = (key, np.unique(np.concatenate(self.comm.allgather(glob))))
+        return self._bc_dofs[1]
 
     def nodal_gaps(self) -> np.ndarray:
         """g at the owned slave nodes (paired again if u changed). Collective."""
@@ -433,11 +488,35 @@ class MembranePairContact(_NodalContact):
         g = self.nodal_gaps()
         low = self.comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
         out = self._master_force()
-        master = -np.asarray(self.comm.allreduce(out.array_r.reshape(-1, 3).sum(axis=0), op=MPI.SUM))
-        out.destroy()
+        master = -np.asarray(self.comm.allreduce(out.reshape(-1, 3).sum(axis=0), op=MPI.SUM))
         lumped = self.lumped_area[self.slave_blocks]
         active = self.nodal_pressures() > 0.0
         return {"pair": self.name, "max_penetration": max(0.0, -low), "force": [float(f) for f in self.force()],
                 "master_force": [float(f) for f in master],
                 "contact_fraction": _area_fraction(self.comm, lumped, active),
                 "active_points": self.comm.allreduce(int(np.sum(active)), op=MPI.SUM)}
+
+
+def pair_contacts(problem: MembraneProblem, slave: str, master: str, k: float, augmented: bool = False,
+                  two_pass: bool = False, name: str | None = None, neighbours: int = 8
+                  ) -> list[MembranePairContact]:
+    """The contact of two membranes (regions ``slave`` and ``master``): one MembranePairContact (one pass: the
+    slave's nodes stay out of the master's triangles, the master's nodes may enter the slave's) or, ``two_pass``
+    (FEBio's two_pass of its sliding contacts), also the master against the slave: each membrane is slave and
+    master in turn, the two passes' energies summed,
+
+        Pi_c = int_slave (k/2) min(g_s, 0)^2 dA + int_master (k/2) min(g_m, 0)^2 dA,
+
+    g_s the slave nodes' gap to the master's triangles and g_m the master nodes' gap to the slave's, each pass
+    with its penalty k (and, ``augmented``, its own multiplier at its slave's nodes), so that neither surface's
+    nodes penetrate the other's triangles on non-matching meshes. Names: ``name`` (default "<slave>-<master>")
+    and, for the second pass, "<name>:reverse" when named, else "<master>-<slave>"."""
+    if two_pass and augmented:
+        raise ValueError("membrane contact: two_pass is penalty only (both membranes' nodes held exactly on the "
+                         "other's triangles over-constrain non-matching meshes: Uzawa stalls)")
+    first = MembranePairContact(problem, slave, master, k, neighbours=neighbours, name=name, augmented=augmented)
+    if not two_pass:
+        return [first]
+    second = MembranePairContact(problem, master, slave, k, neighbours=neighbours,
+                                 name=f"{name}:reverse" if name else None, augmented=augmented)
+    return [first, second]
