@@ -328,3 +328,20 @@ def test_exact_sliding_converges_quadratically_from_a_distorted_start() -> None:
     assert r2 < 1e-9 * history[0], history
     assert np.log(r2 / r1) / np.log(r1 / r0) > 1.5, history  # the observed order: 2 for Newton on C2 pieces
     solver.destroy()
+
+
+def test_exact_sliding_leaves_out_nodes_tied_twice_and_reports_no_force_at_rest() -> None:
+    """Two exact sliding pairs sharing 3 slave nodes leave them out of both (as the interpolated normals' pairs); at
+    rest every paired node is on the master (d = 0), so both report zero force and gap (the nodes left out carry
+    no force either)."""
+    problem, bottom = stacked(1e6, kind="sliding", exact=True)
+    side = BodyContact(problem, "upper_ymin", "lower_zmax", 1e6, kind="sliding", exact=True)
+    assert bottom.left_out == 3 and side.left_out == 3
+    problem.update_state()
+    for pair, gap in ((bottom, 0.0), (side, None)):
+        report = pair.report()
+        assert np.all(np.isfinite(report["force"]))
+        if gap is not None:
+            assert np.abs(report["force"]).max() < 1e-9 and report["max_gap"] < 1e-15  # round-off: 1e-11 N
+    with pytest.raises(ValueError, match="exact"):
+        BodyContact(problem, "upper_zmin", "lower_zmax", 1e6, exact=True)

@@ -250,7 +250,8 @@ class BodyContact:
                      **{f"force{i}": pressure * self.normal[i] * ds for i in range(3)}}
         if self.exact:  # R_zi, K_u,zi and K_zi,zj (i <= j) of Pi_c(u, z1, z2, z3); the force -k (x_s - x*)
             du = ufl.derivative(energy, u, v)
-            r = X + u - self.X_star - self.z
+            paired = ufl.conditional(ufl.gt(self.region, 0.5), 1.0, 0.0)  # not the nodes left out
+            r = paired * (X + u - self.X_star - self.z)
             for i, zi in enumerate(self.slots):
                 self._ufl[f"Rz{i}"] = ufl.derivative(energy, zi, v)
                 self._ufl[f"Kuz{i}"] = ufl.derivative(du, zi, w)
