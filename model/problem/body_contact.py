@@ -139,7 +139,9 @@ def closest_points_on_triangles(points: np.ndarray, triangles: np.ndarray) -> tu
 class BodyContact:
     """Penalty contact (``kind="contact"``) or sliding (``"sliding"``) of ``slave`` against ``master``, two named
     surfaces of the problem's mesh (module docstring). Adds its energy to the problem and registers itself as a
-    coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices)."""
+    coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices).
+    ``exact`` (sliding only): the energy (k/2) d^2, d the distance to the faceted master surface, with its exact
+    derivatives (module docstring, "Exact sliding"); otherwise the gap along the interpolated normals."""
 
     def __init__(self, problem: ElasticityProblem, slave: str, master: str, k: float, kind: str = "contact",
                  neighbours: int = 8, name: str | None = None, augmented: bool = False, tolerance: float = 1e-8,
