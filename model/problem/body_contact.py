@@ -357,13 +357,22 @@ class BodyContact:
         best_d = np.full(n, np.inf)
         best_t = np.zeros(n, dtype=np.int64)
         best_b = np.zeros((n, 3))
+        best_key = np.full(n, np.iinfo(np.int64).max)
+        ordered = np.sort(g_tri, axis=1)
+        size = int(g_tri.max(initial=0)) + 1
+        triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
         if n:
             _, near = cKDTree(x_tri.mean(axis=1)).query(xs, k=k)
             near = np.asarray(near).reshape(n, k)
             for j in range(k):
                 closest, bary = closest_points_on_triangles(xs, x_tri[near[:, j]])
                 d = np.linalg.norm(xs - closest, axis=1)
-                better = d < best_d - 1e-14 * np.maximum(d, 1.0)
+                tol = 1e-14 * np.maximum(d, 1.0)
+                better = d < best_d - tol
+                if self.exact:  # ties (a node on an edge, a vertex, a bisector) to the smallest global triangle:
+                    key = triangle_key[near[:, j]]  # the same choice on any partition
+                    better |= (np.abs(d - best_d) <= tol) & (key < best_key)
+                best_key = np.where(better, triangle_key[near[:, j]], best_key)
                 best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
         tri_x = x_tri[best_t]
         if self.smooth_normals:  # the area-weighted nodal normals of the master surface, interpolated at x*
