@@ -22,6 +22,8 @@ Energies per unit reference area of a surface, k > 0 the penalty stiffness (ener
                                   lambda >= 0 the contact pressure (Uzawa multiplier); lambda = 0
                                   gives the penalty energy
     sliding_energy:               psi = (k/2) g^2                          (both sides: stay on the surface)
+    triangle_squared_distance:    d^2 of a point to a triangle in its closest point's Voronoi region (face,
+                                  edge, vertex): the sliding between deformable bodies, psi = (k/2) d^2
 
 Contact pressure (force per reference area along grad g): p = -dpsi/dg = max(lambda - k g, 0).
 
@@ -43,8 +45,9 @@ Expr = ufl.core.expr.Expr
 Points = Expr | np.ndarray
 Scalar = Expr | np.ndarray | float
 
-__all__ = ["Capsule", "Obstacle", "Plane", "Sphere", "augmented_lagrangian_energy", "contact_pressure", "gap",
-           "in_frame", "penalty_energy", "sliding_energy"]
+__all__ = ["REGION_EDGE", "REGION_FACE", "REGION_NONE", "REGION_VERTEX", "Capsule", "Obstacle", "Plane", "Sphere",
+           "augmented_lagrangian_energy", "contact_pressure", "gap", "in_frame", "penalty_energy", "sliding_energy",
+           "triangle_squared_distance"]
 
 
 # --- arithmetic shared by UFL and numpy -----------------------------------------------------------
@@ -216,6 +219,36 @@ def contact_pressure(g: Scalar, k: float | Expr, pressure: Scalar = 0.0) -> Scal
 def sliding_energy(g: Expr, k: float | Expr) -> Expr:
     """psi = (k/2) g^2: holds a surface on the obstacle's surface from both sides, free to slide along it."""
     return 0.5 * k * g**2
+
+
+#: region codes of triangle_squared_distance: no pairing (energy 0), vertex, edge, face
+REGION_NONE, REGION_VERTEX, REGION_EDGE, REGION_FACE = 0.0, 1.0, 2.0, 3.0
+
+
+def triangle_squared_distance(x: Expr, x1: Expr, x2: Expr, x3: Expr, region: Expr) -> Expr:
+    """The squared distance d^2 of the point x to the triangle (x1, x2, x3) in the Voronoi region ``region`` of its
+    closest point (Ericson's classification; the vertices ordered so that the region's vertex, or edge, comes
+    first):
+
+        face   (region 3):  d^2 = (n . (x - x1))^2 / (n . n),   n = (x2 - x1) x (x3 - x1)
+        edge   (region 2):  d^2 = |r|^2 - (r . e)^2 / (e . e),  r = x - x1, e = x2 - x1
+        vertex (region 1):  d^2 = |r|^2
+        none   (region 0):  0
+
+    In its region each is the exact squared distance, a smooth function of x and the three vertices; across the
+    regions' boundaries on the convex side of a surface of triangles the pieces meet with their gradients
+    (2 (x - x*), x* the closest point: the envelope theorem), so (k/2) d^2 summed over a surface's closest triangles
+    is a C1 potential there whose exact derivatives UFL takes (the normal's rotation and the slip of x* included).
+    The region is piecewise constant data (a P1 function read at the nodes by the vertex rule)."""
+    r = x - x1
+    e = x2 - x1
+    n = ufl.cross(e, x3 - x1)
+    face = ufl.dot(n, r) ** 2 / ufl.dot(n, n)
+    edge = ufl.dot(r, r) - ufl.dot(r, e) ** 2 / ufl.dot(e, e)
+    vertex = ufl.dot(r, r)
+    return ufl.conditional(ufl.lt(region, 0.5), 0.0,
+                           ufl.conditional(ufl.lt(region, 1.5), vertex,
+                                           ufl.conditional(ufl.lt(region, 2.5), edge, face)))
 
 
 def axis_of(normal: np.ndarray, key: str) -> tuple[int, float]:

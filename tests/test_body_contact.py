@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import forms
 import meshes
@@ -28,7 +29,7 @@ OPTIONS = {"snes_rtol": 1e-11, "snes_atol": 1e-10}
 
 
 def stacked(k: float, kind: str = "contact", pressure: float = P,
-            augmented: bool = False) -> tuple[ElasticityProblem, BodyContact]:
+            augmented: bool = False, exact: bool = False) -> tuple[ElasticityProblem, BodyContact]:
     comm = MPI.COMM_WORLD
     data = None
     if comm.rank == 0:
@@ -41,7 +42,7 @@ def stacked(k: float, kind: str = "contact", pressure: float = P,
         problem.add_dirichlet(f"{body}_ymin", (1,), [0.0])
     problem.add_traction("upper_zmax", [0.0, 0.0, -pressure])
     return problem, BodyContact(problem, "upper_zmin", "lower_zmax", k, kind=kind, augmented=augmented,
-                                tolerance=1e-10)
+                                tolerance=1e-10, exact=exact)
 
 
 def one_body(pressure: float = P) -> ElasticityProblem:
@@ -236,3 +237,111 @@ def test_sliding_has_no_consistent_potential_and_nodes_tied_twice_are_left_out()
     assert comm.allreduce(len(bottom.slave_blocks), op=MPI.SUM) == 6
     assert comm.allreduce(len(side.slave_blocks), op=MPI.SUM) == 6
     assert not set(bottom.slave_blocks) & set(side.slave_blocks)
+
+
+# --- exact sliding: (k/2) d^2, the squared distance to the deformed faceted master surface --------------------------
+
+
+def _field(problem: ElasticityProblem, amplitude: float, phase: float) -> np.ndarray:
+    """A smooth vector field of the dof coordinates (the same on any partition), zero on the Dirichlet dofs."""
+    X = problem.space.tabulate_dof_coordinates()[:, :3]
+    values = amplitude * np.sin(np.outer(3.1 * X[:, 0] + 5.3 * X[:, 1] + 7.7 * X[:, 2], [1.0, 1.3, 1.7]) + phase)
+    values = values.ravel()
+    for bc in problem.bcs:
+        dofs = np.asarray(bc.dof_indices()[0])
+        values[dofs[dofs < len(values)]] = 0.0
+    return values
+
+
+def test_exact_sliding_residual_and_tangent_are_the_derivatives_of_its_energy() -> None:
+    """At a distorted state (u of amplitude 0.05 on cells of 0.5: the master is no longer flat, the slave nodes' closest
+    points lie in face and edge regions), R . d = d/dh Pi(u + h d) and J d = d/dh R(u + h d) by central differences
+    (errors O(h^2): the normal's rotation and the closest point's slip are in both), so the pair has no
+    potential_reason and the solver backtracks on the total potential."""
+    problem, pair = stacked(1e7, kind="sliding", pressure=0.0, exact=True)
+    assert problem.potential_reason() is None
+    solver = NewtonSolver(problem)
+    assert solver.line_search == {"type": "bt", "merit": "total_potential"}
+    x = solver.x
+    n = len(x.array)
+    x.array[:] = _field(problem, 0.05, 0.3)[:n]
+    direction = x.duplicate()
+    direction.array[:] = _field(problem, 1.0, 1.1)[:n]
+    b, A = solver.b.duplicate(), solver.A
+
+    def residual(h: float) -> PETSc.Vec:
+        y = x.copy()
+        y.axpy(h, direction)
+        solver._residual(solver.snes, y, b)
+        out = b.copy()
+        y.destroy()
+        return out
+
+    def potential(h: float) -> float:
+        y = x.copy()
+        y.axpy(h, direction)
+        value = solver._objective(solver.snes, y)
+        y.destroy()
+        return value
+
+    r0 = residual(0.0)
+    solver._jacobian(solver.snes, x, A, A)
+    Jd = direction.duplicate()
+    A.mult(direction, Jd)
+    regions = pair.region.x.array[pair.slave_q]
+    kinds = set().union(*MPI.COMM_WORLD.allgather(set(regions.tolist())))
+    assert {2.0, 3.0} <= kinds, kinds  # edge and face regions
+    errors = []
+    for h in (1e-4, 1e-5):
+        slope = (potential(h) - potential(-h)) / (2 * h)
+        assert slope == pytest.approx(r0.dot(direction), rel=1e-6)
+        fd = residual(h)
+        fd.axpy(-1.0, residual(-h))
+        fd.scale(1 / (2 * h))
+        fd.axpy(-1.0, Jd)
+        errors.append(fd.norm() / Jd.norm())
+    assert errors[1] < 1e-6 and errors[1] < errors[0] / 50, errors  # O(h^2)
+    solver.destroy()
+
+
+def test_exact_sliding_converges_quadratically_from_a_distorted_start() -> None:
+    """Newton on the blocks pulled apart (sliding holds them, g = p/k), started from the distorted state of the test
+    above (regions change in the first iterations): the same answer as the interpolated normals' pair (force -p A,
+    gap p/k), and once the regions settle the residuals fall quadratically (measured 1.6e3, 7.2e2, 4.0e2, 0.19,
+    2.6e-4, 2.5e-8 (round-off: 1e-11 |R_0|): the rates 1.3e-3 then 9.6e-5)."""
+    problem, pair = stacked(1e7, kind="sliding", pressure=-P, exact=True)
+    solver = NewtonSolver(problem, options=OPTIONS)
+    problem.solution.x.array[:] = _field(problem, 0.02, 0.3)
+    problem.solution.x.scatter_forward()
+    solver.snes.setConvergenceHistory()
+    problem.set_load_factor(1.0)
+    result = solver.solve()
+    assert result.converged
+    history = np.asarray(solver.snes.getConvergenceHistory()[0])
+    report = pair.report()
+    assert report["force"][2] == pytest.approx(-P, rel=1e-9)
+    assert report["max_gap"] == pytest.approx(P / 1e7, rel=1e-7) and report["max_penetration"] == 0.0
+    # the three residuals from the first below |R_0| / 10 (the finishing full steps repeat the last one)
+    seen = [r for i, r in enumerate(history) if i == 0 or r != history[i - 1]]
+    first = next(i for i, r in enumerate(seen) if r < 0.1 * history[0])
+    r0, r1, r2 = seen[first:first + 3]
+    assert r2 < 1e-9 * history[0] and r1 < 1e-2 * r0, history
+    assert r2 / r1 < 0.1 * (r1 / r0), history  # the rate improves by > 10 a step: quadratic (linear: the same rate)
+    solver.destroy()
+
+
+def test_exact_sliding_leaves_out_nodes_tied_twice_and_reports_no_force_at_rest() -> None:
+    """Two exact sliding pairs sharing 3 slave nodes leave them out of both (as the interpolated normals' pairs); at
+    rest every paired node is on the master (d = 0), so both report zero force and gap (the nodes left out carry
+    no force either)."""
+    problem, bottom = stacked(1e6, kind="sliding", exact=True)
+    side = BodyContact(problem, "upper_ymin", "lower_zmax", 1e6, kind="sliding", exact=True)
+    assert bottom.left_out == 3 and side.left_out == 3
+    problem.update_state()
+    for pair, gap in ((bottom, 0.0), (side, None)):
+        report = pair.report()
+        assert np.all(np.isfinite(report["force"]))
+        if gap is not None:
+            assert np.abs(report["force"]).max() < 1e-9 and report["max_gap"] < 1e-15  # round-off: 1e-11 N
+    with pytest.raises(ValueError, match="exact"):
+        BodyContact(problem, "upper_zmin", "lower_zmax", 1e6, exact=True)

@@ -99,6 +99,22 @@ def test_sliding_holds_the_upper_block_pulled_up(tmp_path_factory) -> None:
     assert "sliding_energy" in last
 
 
+
+def test_exact_sliding_from_the_configuration(tmp_path_factory) -> None:
+    """sliding = true, exact = true: the same answer as the interpolated normals (the blocks stay flat: force -p A,
+    gap p/k) on the line search of a consistent potential (bt on the total potential)."""
+    raw = bodies(sliding=True, augmented=False)
+    del raw["contact"][0]["tolerance"]
+    raw["contact"][0]["exact"] = True
+    raw["boundary"][-1]["value"] = [0.0, 0.0, P]
+    summary = run_raw(raw, out_dir(tmp_path_factory, "exact"))
+    assert summary["solver"]["line_search"] == {"type": "bt", "merit": "total_potential"}
+    pair = summary["steps"][-1]["contact_pairs"]["upper_zmin-lower_zmax"]
+    assert pair["kind"] == "sliding"
+    assert pair["normal_force"] == pytest.approx(-P, rel=1e-9)
+    assert pair["max_gap"] == pytest.approx(P / 1.0e7, rel=1e-8) and pair["max_penetration"] == 0.0
+
+
 BODY = {"surface": "upper_zmin", "master": "lower_zmax", "method": "penalty", "penalty": 1.0e7}
 
 
@@ -114,6 +130,10 @@ BODY = {"surface": "upper_zmin", "master": "lower_zmax", "method": "penalty", "p
     ({**BODY, "sliding": "yes"}, "contact[0].sliding", "true or false"),
     ({**BODY, "sliding": True, "augmented": True}, "contact[0].augmented", "sliding"),
     ({**BODY, "quadrature_degree": 2}, "contact[0].quadrature_degree", "vertex"),
+    ({**BODY, "exact": True}, "contact[0].exact", "sliding = true"),
+    ({**BODY, "sliding": True, "exact": 1}, "contact[0].exact", "true or false"),
+    ({"surface": "zmin", "obstacle": "plane", "point": [0, 0, 0], "normal": [0, 0, 1], "method": "penalty",
+      "penalty": 1.0, "exact": True}, "contact[0].exact", "master"),
     ({"surface": "zmin", "obstacle": "plane", "point": [0, 0, 0], "normal": [0, 0, 1], "method": "penalty",
       "penalty": 1.0, "sliding": True}, "contact[0].sliding", "master"),
     ({"surface": "zmin", "method": "penalty", "penalty": 1.0}, "contact[0].obstacle", "master"),

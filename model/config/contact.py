@@ -32,7 +32,7 @@ def _contact_schema(schema: dict[str, Any]) -> None:
     schema.setdefault("allOf", []).append(
         {"if": {"required": ["master"]},
          "then": {"properties": {k: False for k in ("obstacle", "bone", *ALL_SHAPE_KEYS)}},
-         "else": {"properties": {"sliding": False}}})
+         "else": {"properties": {"sliding": False, "exact": False}}})
 
 
 class ContactSpec(Variant):
@@ -53,6 +53,8 @@ class ContactSpec(Variant):
                               default=None)
     sliding: Flag = key("master only: the surface stays on master and slides along it (zero-length normal "
                         "springs, (k/2) g^2; false: contact, (k/2) min(g, 0)^2)", default=False)
+    exact: Flag = key("sliding only: the energy (k/2) d^2, d the distance to master's deformed triangles, with its "
+                      "exact derivatives (a consistent potential: backtracking on it; docs/layers.md)", default=False)
     bone: Name | None = key("name of a [[bone]]: the obstacle moves with it (and is its shape when obstacle is not "
                             "given)", default=None)
     penalty: Positive | None = key("penalty stiffness k per unit reference area and unit penetration",
@@ -88,8 +90,9 @@ class ContactSpec(Variant):
                     if k in data:
                         fail("not with master (contact between two bodies has no rigid obstacle)", k)
             else:
-                if "sliding" in data:
-                    fail("only with master = \"<boundary of another body>\" (sliding between bodies)", "sliding")
+                for k in ("sliding", "exact"):
+                    if k in data:
+                        fail("only with master = \"<boundary of another body>\" (sliding between bodies)", k)
                 if "obstacle" not in data and "bone" not in data:
                     fail("missing (give obstacle = \"plane\" | \"sphere\" | \"capsule\", a bone, or master = a "
                          "boundary of another body)", "obstacle")
@@ -99,6 +102,8 @@ class ContactSpec(Variant):
     def _between_bodies(self) -> ContactSpec:
         if self.master is None:
             return self
+        if self.exact and not self.sliding:
+            fail("only with sliding = true (the exact squared distance is a sliding energy)", "exact")
         if self.master == self.surface:
             fail(f"must differ from surface ({self.surface!r}): contact between two bodies' boundaries", "master")
         if self.sliding and self.augmented:
@@ -143,7 +148,7 @@ class PenaltyContact(ContactSpec):
     """method = "penalty": the energy (k/2) min(g, 0)^2 per unit reference area (g the gap), or with
     augmented = true its augmented Lagrangian with Uzawa updates."""
 
-    keys = (*_SHAPE_AND_COMMON, "master", "sliding", "penalty", "augmented", "tolerance", "max_uzawa",
+    keys = (*_SHAPE_AND_COMMON, "master", "sliding", "exact", "penalty", "augmented", "tolerance", "max_uzawa",
             "quadrature_degree")
     method: Literal["penalty"] = key("a penalty energy on the penetration")
     penalty: Positive = key("the penalty stiffness k > 0, per unit reference area and unit penetration",

@@ -40,6 +40,34 @@ full steps instead of a line search on the total potential (which failed on the 
 mesh). A slave node of two sliding pairs (tied to two surfaces: the fat's nodes on the rim of the face that two
 touching muscles share) is left out of both (``leave_shared``, on for sliding).
 
+Exact sliding (``exact=True``, kind "sliding"; opt-in): Pi_c = int_slave (k/2) d^2 dA with d the distance of x_s to
+the deformed faceted master surface, written in closed form in the Voronoi region of the closest point on T
+(forms.obstacles.triangle_squared_distance; Ericson's classification, T's vertices ordered with the region's
+vertex or edge first):
+
+    face:   d^2 = (n . (x_s - x_1))^2 / (n . n),  n = (x_2 - x_1) x (x_3 - x_1)
+    edge:   d^2 = |r|^2 - (r . e)^2 / (e . e),     r = x_s - x_1, e = x_2 - x_1
+    vertex: d^2 = |x_s - x_1|^2,                   x_i = X_i + z_i.
+
+The three vertices' displacements are Functions z_1, z_2, z_3 (at the slave nodes) with selection matrices P_i
+(row (slave node, c) = e_(vertex i, c)), so
+
+    R = dPi_c/du + sum_i P_i^T dPi_c/dz_i,
+    K = d2Pi_c/du2 + sum_i (K_u,zi P_i + P_i^T K_zi,u) + sum_ij P_i^T K_zi,zj P_j
+
+(every block UFL-assembled). Only T and the region are lagged; within a region d^2 is smooth, and across regions
+it is C1 on the convex side (its gradient is 2 (x_s - x*), the envelope theorem), so R is dPi_c/du exactly, with
+the normal's rotation and the closest point's slip, and the pair has no potential_reason (bt on the total
+potential). Tested: R . d and J d against central differences of Pi and R (O(h^2)), and Newton's quadratic rate
+once the regions settle (tests/test_body_contact.py). Not the default: on the layered arm, whose fat nodes start
+on the muscles' vertices, d^2's Hessian jumps between the regions (k n n^T on a face, k (I - e e^T) on an edge,
+k I at a vertex) right where the nodes are, and below the surface d is only C0 across a convex edge's bisector
+(the closest face switches): full Newton steps cycle there, and bt converges, not quadratically (more iterations
+than the interpolated normals at 10 degrees of flexion, but 24 of 30 degrees reached against 13; docs/layers.md,
+"Contact and sliding between deformable bodies"). Ties in the closest-triangle search go to the smallest global
+triangle (the same pairing on any partition); the layered arm's exact answer still differs by
+1-3 % between 1 and 2 ranks (several equilibria within the tolerance at those kinks).
+
 P1 displacement formulation only (the nodal rule); the master surface's triangles are gathered on every rank
 (each rank pairs its own slave nodes), so the search is MPI-correct with the same result on any number of ranks.
 """
@@ -56,7 +84,13 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from forms.obstacles import augmented_lagrangian_energy, contact_pressure, penalty_energy, sliding_energy
+from forms.obstacles import (
+    augmented_lagrangian_energy,
+    contact_pressure,
+    penalty_energy,
+    sliding_energy,
+    triangle_squared_distance,
+)
 from model import compat
 from model.problem.bones import surface_measure
 from model.problem.elasticity import ElasticityProblem
@@ -108,11 +142,14 @@ def closest_points_on_triangles(points: np.ndarray, triangles: np.ndarray) -> tu
 class BodyContact:
     """Penalty contact (``kind="contact"``) or sliding (``"sliding"``) of ``slave`` against ``master``, two named
     surfaces of the problem's mesh (module docstring). Adds its energy to the problem and registers itself as a
-    coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices)."""
+    coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices).
+    ``exact`` (sliding only): the energy (k/2) d^2, d the distance to the faceted master surface, with its exact
+    derivatives (module docstring, "Exact sliding"); otherwise the gap along the interpolated normals."""
 
     def __init__(self, problem: ElasticityProblem, slave: str, master: str, k: float, kind: str = "contact",
                  neighbours: int = 8, name: str | None = None, augmented: bool = False, tolerance: float = 1e-8,
-                 max_uzawa: int = 25, smooth_normals: bool | None = None, leave_shared: bool | None = None) -> None:
+                 max_uzawa: int = 25, smooth_normals: bool | None = None, leave_shared: bool | None = None,
+                 exact: bool = False) -> None:
         if kind not in KINDS:
             raise ValueError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
         if not (np.isfinite(k) and k > 0):
@@ -124,7 +161,14 @@ class BodyContact:
         if isinstance(max_uzawa, bool) or not isinstance(max_uzawa, int) or max_uzawa < 1:
             raise ValueError(f"max_uzawa: {max_uzawa!r} must be an integer >= 1")
         self.augmented, self.tolerance, self.max_uzawa = augmented, float(tolerance), max_uzawa
-        self.smooth_normals = kind == "sliding" if smooth_normals is None else bool(smooth_normals)
+        self.exact = bool(exact)
+        if self.exact and kind != "sliding":
+            raise ValueError("exact: the squared distance to the master surface is the sliding energy "
+                             "(kind = 'sliding')")
+        if self.exact and smooth_normals:
+            raise ValueError("smooth_normals: the exact sliding energy (k/2) d^2 has no normal to smooth "
+                             "(exact = False for the interpolated normals)")
+        self.smooth_normals = (kind == "sliding" and not self.exact) if smooth_normals is None else bool(smooth_normals)
         if problem.formulation != "displacement" or problem.degree != 1:
             raise ValueError("contact between bodies: the P1 displacement formulation only (nodal pairing)")
         for surface in (slave, master):
@@ -151,6 +195,7 @@ class BodyContact:
         self.left_out = 0
         self.q_of_block: np.ndarray | None = None
         self.Pi: PETSc.Mat | None = None
+        self.P: list[PETSc.Mat] = []  # exact sliding: the selection matrices of the three vertex slots
         if self.leave_shared and kind == "sliding":
             self._leave_shared()
         shared = np.intersect1d(self.slave_blocks, self.master_local.ravel())
@@ -168,6 +213,16 @@ class BodyContact:
         # the augmented Lagrangian's multiplier: the contact pressure at the nodes (scalar P1), its dof of each
         # slave node from the collapsed first component of V (dof q of the scalar space is V's block map[q] // bs)
         Q, to_v = V.sub(0).collapse()
+        if self.exact:  # the paired triangle's three vertices at each slave node: reference X_i, displacement z_i
+            self.vertices = [fem.Function(V, name=f"X_vertex{i}") for i in range(3)]
+            self.slots = [fem.Function(V, name=f"z_vertex{i}") for i in range(3)]
+            self.region = fem.Function(Q, name="closest_point_region")
+            x = X + u
+            self.squared_distance = triangle_squared_distance(
+                x, *(Xi + zi for Xi, zi in zip(self.vertices, self.slots)), self.region)
+            # for the report: r = x_s - x*, the signed distance sign(n_T . r) |r|
+            r = x - self.X_star - self.z
+            self.gap = ufl.sign(ufl.dot(self.normal, r)) * ufl.sqrt(ufl.dot(r, r))
         self.multiplier = fem.Function(Q, name="contact_pressure")
         block_of_q = np.asarray(to_v, dtype=np.int64) // self.bs
         q_of_block = np.full(len(self.reference), -1, dtype=np.int64)
@@ -180,7 +235,9 @@ class BodyContact:
         # surfaces that coincide at rest have gaps of +-2e-16 (round-off, machine dependent): count them touching,
         # so that the first tangent holds them (else Newton's first step lets the bodies pass through each other)
         touching = TOUCHING * self.size
-        if kind == "sliding":
+        if self.exact:
+            psi = 0.5 * self.k * self.squared_distance
+        elif kind == "sliding":
             psi = sliding_energy(self.gap, self.k)
         elif augmented:
             psi = augmented_lagrangian_energy(self.gap, self.multiplier, self.k, touching)
@@ -196,6 +253,18 @@ class BodyContact:
         self._ufl = {"Rz": dz, "Kuz": ufl.derivative(ufl.derivative(energy, u, v), self.z, w),
                      "Kzz": ufl.derivative(dz, self.z, w), "normal_force": pressure * ds,
                      **{f"force{i}": pressure * self.normal[i] * ds for i in range(3)}}
+        if self.exact:  # R_zi, K_u,zi and K_zi,zj (i <= j) of Pi_c(u, z1, z2, z3); the force -k (x_s - x*)
+            du = ufl.derivative(energy, u, v)
+            paired = ufl.conditional(ufl.gt(self.region, 0.5), 1.0, 0.0)  # not the nodes left out
+            r = paired * (X + u - self.X_star - self.z)
+            for i, zi in enumerate(self.slots):
+                self._ufl[f"Rz{i}"] = ufl.derivative(energy, zi, v)
+                self._ufl[f"Kuz{i}"] = ufl.derivative(du, zi, w)
+                for j in range(i, 3):
+                    self._ufl[f"Kzz{i}{j}"] = ufl.derivative(self._ufl[f"Rz{i}"], self.slots[j], w)
+            self._ufl.update({f"force{i}": -self.k * r[i] * ds for i in range(3)})
+            for key in ("Rz", "Kuz", "Kzz"):
+                del self._ufl[key]
         self._compiled: dict[str, Any] = {}
         self._stamp: np.ndarray | None = None
         problem.add_energy(energy, "contact" if kind == "contact" else "sliding")
@@ -245,8 +314,7 @@ class BodyContact:
             for pair in (self, other):
                 pair.slave_blocks = np.setdiff1d(pair.slave_blocks, both).astype(np.int32)
                 pair.left_out += count
-                if pair.Pi is not None:  # paired before: pair again
-                    pair._stamp = None
+                pair._stamp = None  # paired before: pair again
             if other.q_of_block is not None:
                 other.slave_q = other.q_of_block[other.slave_blocks]
             log.info("%s and %s: %d slave nodes tied to both left out of both", self.name, other.name, count)
@@ -292,13 +360,22 @@ class BodyContact:
         best_d = np.full(n, np.inf)
         best_t = np.zeros(n, dtype=np.int64)
         best_b = np.zeros((n, 3))
+        best_key = np.full(n, np.iinfo(np.int64).max)
+        ordered = np.sort(g_tri, axis=1)
+        size = int(g_tri.max(initial=0)) + 1
+        triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
         if n:
             _, near = cKDTree(x_tri.mean(axis=1)).query(xs, k=k)
             near = np.asarray(near).reshape(n, k)
             for j in range(k):
                 closest, bary = closest_points_on_triangles(xs, x_tri[near[:, j]])
                 d = np.linalg.norm(xs - closest, axis=1)
-                better = d < best_d - 1e-14 * np.maximum(d, 1.0)
+                tol = 1e-14 * np.maximum(d, 1.0)
+                better = d < best_d - tol
+                if self.exact:  # ties (a node on an edge, a vertex, a bisector) to the smallest global triangle:
+                    key = triangle_key[near[:, j]]  # the same choice on any partition
+                    better |= (np.abs(d - best_d) <= tol) & (key < best_key)
+                best_key = np.where(better, triangle_key[near[:, j]], best_key)
                 best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
         tri_x = x_tri[best_t]
         if self.smooth_normals:  # the area-weighted nodal normals of the master surface, interpolated at x*
@@ -318,17 +395,47 @@ class BodyContact:
             array[:] = 0.0
             array[slave] = values
             function.x.scatter_forward()
-        self._build_interpolation(best_b, g_tri[best_t])
+        if self.exact:
+            self._set_slots(best_b, X_tri[best_t], x_tri[best_t], g_tri[best_t])
+        else:
+            if self.Pi is not None:
+                self.Pi.destroy()
+            self.Pi = self._selection(best_b, g_tri[best_t])
         self.distance = best_d
         self._stamp = current.copy()
 
-    def _build_interpolation(self, bary: np.ndarray, columns: np.ndarray) -> None:
-        """Pi: row (slave node, component c) = sum_j b_j e_(master node j, component c), global indices."""
+    def _set_slots(self, bary: np.ndarray, X_tri: np.ndarray, x_tri: np.ndarray, columns: np.ndarray) -> None:
+        """Exact sliding: the region of each slave node's closest point (the number of nonzero b_j: 1 vertex,
+        2 edge, 3 face; Ericson's regions give exact zeros), its triangle's vertices ordered with the region's
+        vertex or edge first, their reference positions X_i and displacements z_i, and the selection matrices P_i
+        (row (slave node, c) = e_(vertex i, c)). Nodes that are not paired (not slave, left out) get region 0 and a
+        fixed non-degenerate triangle (the unused branches of the distance stay finite). Collective."""
+        slave, n = self.slave_blocks, len(self.slave_blocks)
+        nonzero = bary != 0.0
+        order = np.argsort(~nonzero, axis=1, kind="stable")
+        rows = np.arange(n)[:, None]
+        X_o, u_o, cols = X_tri[rows, order], (x_tri - X_tri)[rows, order], columns[rows, order]
+        filler = self.size * np.eye(3)
+        for i in range(3):
+            for function, values, rest in ((self.vertices[i], X_o[:, i], filler[i]), (self.slots[i], u_o[:, i], 0.0)):
+                array = function.x.array.reshape(-1, self.bs)
+                array[:] = rest
+                array[slave] = values
+                function.x.scatter_forward()
+        self.region.x.array[:] = 0.0
+        self.region.x.array[self.slave_q] = nonzero.sum(axis=1)
+        self.region.x.scatter_forward()
+        for P in self.P:
+            P.destroy()
+        self.P = [self._selection(np.ones((n, 1)), cols[:, i:i + 1]) for i in range(3)]
+
+    def _selection(self, weights: np.ndarray, columns: np.ndarray) -> PETSc.Mat:
+        """The matrix with row (slave node s, component c) = sum_j weights[s, j] e_(columns[s, j], component c)
+        (global indices): Pi (the b_j of the closest point's triangle) or a vertex slot's P_i."""
         imap = self.V.dofmap.index_map
         bs = self.bs
+        bary = weights
         n_local, n_global = imap.size_local * bs, imap.size_global * bs
-        if self.Pi is not None:
-            self.Pi.destroy()
         Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)), nnz=(3, 3), comm=self.comm)
         Pi.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         rows = np.asarray(imap.local_to_global(self.slave_blocks.astype(np.int32)), dtype=np.int64)
@@ -338,7 +445,7 @@ class BodyContact:
                 Pi.setValues(np.array([r * bs + c], dtype=index), (cols * bs + c).astype(index), w,
                              addv=PETSc.InsertMode.INSERT)
         Pi.assemble()
-        self.Pi = Pi
+        return Pi
 
     def _form(self, key: str) -> Any:
         if key not in self._compiled:
@@ -347,21 +454,67 @@ class BodyContact:
 
     # --- the Newton solver's hooks ------------------------------------------------------------------------
     def add_residual(self, b: PETSc.Vec) -> None:
-        """b += Pi^T dPi_c/dz (b: the assembled residual, reverse-scattered). Collective."""
+        """b += Pi^T dPi_c/dz (exact sliding: sum_i P_i^T dPi_c/dz_i; b: the assembled residual, reverse-scattered).
+        Collective."""
         self.update()
-        Rz = fem_petsc.assemble_vector(self._form("Rz"))
-        Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        out = self.Pi.createVecRight()
-        self.Pi.multTranspose(Rz, out)
-        extra = out.array_r  # the owned entries (a vector without ghosts has no local form under MPI)
-        with b.localForm() as local:
-            local.array[: len(extra)] += extra
-        Rz.destroy()
-        out.destroy()
+        terms = [(f"Rz{i}", P) for i, P in enumerate(self.P)] if self.exact else [("Rz", self.Pi)]
+        for key, P in terms:
+            Rz = fem_petsc.assemble_vector(self._form(key))
+            Rz.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            out = P.createVecRight()
+            P.multTranspose(Rz, out)
+            extra = out.array_r  # the owned entries (a vector without ghosts has no local form under MPI)
+            with b.localForm() as local:
+                local.array[: len(extra)] += extra
+            Rz.destroy()
+            out.destroy()
+
+    def _assembled(self, key: str) -> PETSc.Mat:
+        matrix = fem_petsc.assemble_matrix(self._form(key))
+        matrix.assemble()
+        return matrix
+
+    def _exact_coupling(self) -> PETSc.Mat:
+        """sum_i (K_u,zi P_i + P_i^T K_zi,u) + sum_ij P_i^T K_zi,zj P_j (K_zj,zi = K_zi,zj^T: the i < j terms once,
+        with their transposes)."""
+        C: PETSc.Mat | None = None
+        different = PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
+
+        def add(M: PETSc.Mat, symmetric: bool) -> None:
+            nonlocal C
+            if C is None:
+                C = M.copy()
+            else:
+                C.axpy(1.0, M, structure=different)
+            if symmetric:
+                T = M.transpose()
+                C.axpy(1.0, T, structure=different)
+                T.destroy()
+            M.destroy()
+
+        for i, Pi in enumerate(self.P):
+            K = self._assembled(f"Kuz{i}")
+            add(K.matMult(Pi), True)
+            K.destroy()
+            for j in range(i, 3):
+                K = self._assembled(f"Kzz{i}{j}")
+                if i == j:
+                    add(K.PtAP(Pi), False)
+                else:
+                    KP = K.matMult(self.P[j])
+                    add(Pi.transposeMatMult(KP), True)
+                    KP.destroy()
+                K.destroy()
+        return C
 
     def coupling_matrix(self) -> PETSc.Mat:
-        """C = K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi with the rows and columns of the Dirichlet dofs zeroed."""
+        """C = K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi (exact sliding: _exact_coupling) with the rows and columns of the
+        Dirichlet dofs zeroed."""
         self.update()
+        if self.exact:
+            C = self._exact_coupling()
+            C.zeroRowsColumns(self._dirichlet_rows(), diag=0.0)
+            return C
         Kuz = fem_petsc.assemble_matrix(self._form("Kuz"))
         Kuz.assemble()
         Kzz = fem_petsc.assemble_matrix(self._form("Kzz"))
@@ -399,9 +552,12 @@ class BodyContact:
         self.problem.update_state()
         u = self.problem.solution.x.array.reshape(-1, self.bs)
         slave = self.slave_blocks
-        return np.einsum("ij,ij->i", self.normal.x.array.reshape(-1, self.bs)[slave],
-                         self.reference[slave] + u[slave] - self.X_star.x.array.reshape(-1, self.bs)[slave]
-                         - self.z.x.array.reshape(-1, self.bs)[slave])
+        r = (self.reference[slave] + u[slave] - self.X_star.x.array.reshape(-1, self.bs)[slave]
+             - self.z.x.array.reshape(-1, self.bs)[slave])
+        normal = self.normal.x.array.reshape(-1, self.bs)[slave]
+        if self.exact:  # the signed distance: |x_s - x*| on the side of T's outward normal
+            return np.sign(np.einsum("ij,ij->i", normal, r)) * np.linalg.norm(r, axis=1)
+        return np.einsum("ij,ij->i", normal, r)
 
     @property
     def absolute_tolerance(self) -> float:
