@@ -308,7 +308,7 @@ def test_exact_sliding_converges_quadratically_from_a_distorted_start() -> None:
     """Newton on the blocks pulled apart (sliding holds them, g = p/k), started from the distorted state of the test
     above (regions change in the first iterations): the same answer as the interpolated normals' pair (force -p A,
     gap p/k), and once the regions settle the residuals fall quadratically (measured 1.6e3, 7.2e2, 4.0e2, 0.19,
-    2.6e-4, 2.5e-8 (round-off: 1e-11 |R_0|): the rates 1.3e-3 then 9.6e-5)."""
+    2.6e-4, 2.5e-8 (round-off: 1e-11 to 4e-11 |R_0|): the rates 1.3e-3 then 9.6e-5)."""
     problem, pair = stacked(1e7, kind="sliding", pressure=-P, exact=True)
     solver = NewtonSolver(problem, options=OPTIONS)
     problem.solution.x.array[:] = _field(problem, 0.02, 0.3)
@@ -326,7 +326,10 @@ def test_exact_sliding_converges_quadratically_from_a_distorted_start() -> None:
     first = next(i for i, r in enumerate(seen) if r < 0.1 * history[0])
     r0, r1, r2 = seen[first:first + 3]
     assert r2 < 1e-9 * history[0] and r1 < 1e-2 * r0, history
-    assert r2 / r1 < 0.1 * (r1 / r0), history  # the rate improves by > 10 a step: quadratic (linear: the same rate)
+    # the rate improves by > 10 a step: quadratic (linear: the same rate), unless r2 is at round-off already (Debian 13
+    # on 2 ranks: 0.19, 2.6e-4, 6.5e-8 = 4e-11 |R_0|, where the quadratic step would give 5e-10; a linear rate of
+    # 1.3e-3 would leave 3.5e-7 = 2e-10 |R_0|)
+    assert r2 / r1 < 0.1 * (r1 / r0) or r2 < 1e-10 * history[0], history
     solver.destroy()
 
 
