@@ -49,7 +49,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["GAP_MESH", "PAIRS", "TOUCHING_PAIRS", "ArmResult", "arm_config", "arm_raw", "compare_arms",
            "compare_flexion", "flexion_bones", "flexion_config", "flexion_raw", "gap_raw", "run_arm", "run_flexion",
-           "run_gap", "skin_difference"]
+           "run_gap", "skin_difference", "body_balance"]
 
 #: The segment's length (meshes.arm_segment's default; the bulge band is its middle fifth).
 LENGTH = 0.12
@@ -315,6 +315,24 @@ def _run(config: RunConfig, layered: bool, names: tuple[tuple[str, str, str, str
              "layered" if layered else "conforming", " (flexion)" if flexion else "", result.cells, iterations,
              bulge_max, bulge_mean, result.seconds)
     return result
+
+
+def body_balance(result: ArmResult) -> dict[str, np.ndarray]:
+    """Each body's force balance in a layered run (N, zero at equilibrium): its faces' reactions plus the forces of
+    its pairs, the force on muscle b from a taken as minus the reported force on a from b and the force on a muscle
+    from the fat as minus the force on the fat, and the humerus' push on the fat (flexion runs):
+
+        a:   R_a_origin + R_a_insertion + f_ab - f_fa
+        b:   R_b_origin + R_b_insertion - f_ab - f_fb
+        fat: R_fat_proximal + R_fat_distal + f_fa + f_fb + f_bone
+        all: sum of every reaction + f_bone"""
+    R, pairs = result.reactions, result.pairs
+    f_ab, f_fa, f_fb = (np.asarray(pairs[n]["force"]) for n in ("a_on_b", "fat_on_a", "fat_on_b"))
+    bone = np.asarray(result.bone.get("force", np.zeros(3)), dtype=float)
+    return {"a": R["a_origin"] + R["a_insertion"] + f_ab - f_fa,
+            "b": R["b_origin"] + R["b_insertion"] - f_ab - f_fb,
+            "fat": R["fat_proximal"] + R["fat_distal"] + f_fa + f_fb + bone,
+            "all": sum(R.values()) + bone}
 
 
 def skin_difference(conforming: ArmResult, layered: ArmResult) -> dict[str, float]:
