@@ -434,14 +434,13 @@ class BodyContact:
         (global indices): Pi (the b_j of the closest point's triangle) or a vertex slot's P_i."""
         imap = self.V.dofmap.index_map
         bs = self.bs
-        bary = weights
         n_local, n_global = imap.size_local * bs, imap.size_global * bs
         Pi = PETSc.Mat().createAIJ(((n_local, n_global), (n_local, n_global)), nnz=(3, 3), comm=self.comm)
         Pi.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         rows = np.asarray(imap.local_to_global(self.slave_blocks.astype(np.int32)), dtype=np.int64)
         index = PETSc.IntType
         for c in range(bs):
-            for r, cols, w in zip(rows, columns, bary):
+            for r, cols, w in zip(rows, columns, weights):
                 Pi.setValues(np.array([r * bs + c], dtype=index), (cols * bs + c).astype(index), w,
                              addv=PETSc.InsertMode.INSERT)
         Pi.assemble()
