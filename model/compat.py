@@ -25,10 +25,12 @@ What differs between the two releases, and where it is handled here:
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
 import platform
 import subprocess
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +41,7 @@ import ufl
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
 from petsc4py import PETSc
 
 #: dolfinx's version as a tuple of integers, e.g. (0, 9, 0)
@@ -248,6 +251,36 @@ def exterior_facet_vertices(msh: dmesh.Mesh) -> np.ndarray:
         nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets)
     nodes = np.asarray(nodes).reshape(len(facets), -1)[:, :tdim]  # the vertices (first nodes of each facet)
     return msh.geometry.x[nodes][:, :, :3].copy()
+
+
+def jit_cache_dir() -> Path:
+    """The JIT cache dolfinx compiles into (its defaults, or a user's dolfinx_jit_options.json)."""
+    options = dolfinx.jit.get_parameters() if LEGACY else dolfinx.jit.get_options()
+    return Path(options["cache_dir"]).expanduser()
+
+
+@contextlib.contextmanager
+def self_jit_lock(comm: Any) -> Iterator[None]:
+    """Compile forms of a mesh on ``comm`` = MPI.COMM_SELF one process at a time when COMM_WORLD has several.
+
+    dolfinx compiles a form of a parallel mesh on rank 0 first and raises on every rank together when that fails;
+    a COMM_SELF mesh (the verify tool's cells) has no such guard: every rank compiles the same module into the
+    shared cache, one creates the C file and the others wait for its ``.c.cached`` marker, which never comes
+    when that compile fails (FFCx renames the file ``.c.failed``), until the JIT timeout (``JIT_TIMEOUT``, 600 s).
+    Under this lock (an exclusive ``fcntl.flock`` on ``model-self-jit.lock`` in the cache) the next process finds
+    the module cached, or no C file and fails the same way at once. A no-op on one process or a parallel mesh.
+    """
+    if comm.size > 1 or MPI.COMM_WORLD.size == 1:
+        yield
+        return
+    cache = jit_cache_dir()
+    cache.mkdir(parents=True, exist_ok=True)
+    with open(cache / "model-self-jit.lock", "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def compile_form(form: Any, cache_dir: str | None = None) -> Any:

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mpi4py import MPI
 
 from forms.law import ParameterError
 from forms.registry import resolve_law
@@ -177,10 +176,6 @@ def test_user_law_errors(tmp_path: Path, text: str, fragment: str) -> None:
     assert fragment in message, message
 
 
-# Serial only: under mpirun both ranks compile the same failing form, and FFCx's cache makes the rank that finds the
-# other's C file wait for its ".c.cached" until the JIT timeout (model.compat.JIT_TIMEOUT, 600 s), which never
-# comes once the other rank's compile failed (its file renamed ".c.failed"): measured 600 s in one 2-rank CI run.
-@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="a failing compile on two ranks waits for FFCx's JIT timeout")
 def test_energy_that_does_not_compile_is_one_line(tmp_path: Path) -> None:
     """A scalar UFL energy FFCx cannot translate to C (the modified Bessel function K has no C rule) was a
     traceback from deep inside FFCx; now verify (emit, check through ReferenceEvaluator) and verify element

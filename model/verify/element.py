@@ -319,8 +319,10 @@ class ElementAssembler:
         dx = ufl.dx(domain=msh, metadata=metadata)
         try:
             residual = ufl.inner(self.material.stress(F, R), ufl.grad(ufl.TestFunction(space))) * dx
-            self.forms = (fem.form(residual), fem.form(ufl.derivative(residual, self.u, ufl.TrialFunction(space))),
-                          fem.form(self.material.energy(F, R) * dx))
+            with compat.self_jit_lock(msh.comm):
+                self.forms = (fem.form(residual),
+                              fem.form(ufl.derivative(residual, self.u, ufl.TrialFunction(space))),
+                              fem.form(self.material.energy(F, R) * dx))
         except Exception as err:  # noqa: BLE001 -- a law of the user's own: one line naming it
             from model.verify.evaluator import compile_error, is_user_law
 

@@ -81,8 +81,9 @@ class ReferenceEvaluator:
             psi = self.law.energy(Fv, R)
             P = self.law.stress(Fv, R)
             A = ufl.diff(P, Fv)
-            self.expressions = {"psi": fem.Expression(psi, points), "P": fem.Expression(P, points),
-                                "A": fem.Expression(A, points)}
+            with compat.self_jit_lock(self.mesh.comm):
+                self.expressions = {"psi": fem.Expression(psi, points), "P": fem.Expression(P, points),
+                                    "A": fem.Expression(A, points)}
         except Exception as err:  # noqa: BLE001 -- a law of the user's own: one line naming it
             if not is_user_law(material):
                 raise
