@@ -421,7 +421,7 @@ class MembranePairContact(_NodalContact):
         K_uz and K_zz are assembled into matrices made once; each rank multiplies its owned rows of them with the
         whole Pi (every rank has the whole pairing, scipy): K_uz,r Pi and its transpose, Pi_r^T K_zz,r Pi (Pi_r
         Pi's owned rows; summed over the ranks they are the three terms), no parallel matrix product; the owned
-        rows go into A in one CSR call, the others with MatSetValues to be sent at A's assembly (new nonzeros
+        rows go into A in one CSR call, the others in one row-mapped CSR call, sent at A's assembly (new nonzeros
         allocated as the pairing brings them: MatAXPY with the union pattern leaves a matrix that dolfinx 0.9's
         next assembly cannot use, DIVERGED_LINEAR_SOLVE)."""
         for key in ("Kuz", "Kzz"):
@@ -449,11 +449,12 @@ class MembranePairContact(_NodalContact):
         owned = C[start:start + m]
         A.setValuesCSR(owned.indptr.astype(PETSc.IntType), owned.indices.astype(PETSc.IntType), owned.data,
                        addv=PETSc.InsertMode.ADD_VALUES)
-        others = np.flatnonzero(np.diff(C.indptr))
-        for i in others[(others < start) | (others >= start + m)]:
-            a, b = C.indptr[i], C.indptr[i + 1]
-            A.setValues([int(i)], C.indices[a:b].astype(PETSc.IntType), C.data[a:b],
-                        addv=PETSc.InsertMode.ADD_VALUES)
+        rows = np.flatnonzero(np.diff(C.indptr))
+        others = rows[(rows < start) | (rows >= start + m)]  # rows another rank owns: one CSR call, row-mapped
+        if others.size:
+            block = C[others]
+            A.setValuesIJV(block.indptr.astype(PETSc.IntType), block.indices.astype(PETSc.IntType), block.data,
+                           addv=PETSc.InsertMode.ADD_VALUES, rowmap=others.astype(PETSc.IntType))
 
     def _dirichlet(self, bcs: list) -> np.ndarray:
         """The global indices of every rank's Dirichlet dofs (sorted)."""
