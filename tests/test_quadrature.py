@@ -9,12 +9,14 @@ energy, the residual vector and the Jacobian matrix of the two rules agree to 1e
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import numpy as np
 import pytest
 import ufl
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -126,3 +128,32 @@ def test_one_point_equals_four_points_at_p1(domain: Any, name: str) -> None:
     assert A1.norm(PETSc.NormType.FROBENIUS) <= 1e-12 * A4.norm(PETSc.NormType.FROBENIUS)
     A1.destroy()
     A4.destroy()
+
+
+@pytest.mark.parametrize("cell", ["triangle", "tetrahedron"])
+def test_vertex_rule_is_exact_for_p1_and_quiet(cell: str, caplog: pytest.LogCaptureFixture) -> None:
+    """forms.quadrature.vertex_rule: int (1 + 2x - 3y (+ z)) over the unit square / cube is its P1 interpolant's
+    integral, the closed form 1 - 1/2 (+ 1/2) to 1e-14, on the cells (dx) and on the cube's facets (ds, the
+    triangle rule: int over the boundary of 1 + x = 6 + 3 = 9); and UFL logs no warning for the rule's metadata
+    (numpy arrays made it warn "Applying str() to a metadata value of type ndarray" for every form)."""
+    from forms.quadrature import vertex_rule
+
+    comm = MPI.COMM_WORLD
+    if cell == "triangle":
+        msh = dmesh.create_unit_square(comm, 3, 4)
+        x = ufl.SpatialCoordinate(msh)
+        integrand, exact = 1 + 2 * x[0] - 3 * x[1], 1.0 + 1.0 - 1.5
+    else:
+        msh = dmesh.create_unit_cube(comm, 2, 3, 2)
+        x = ufl.SpatialCoordinate(msh)
+        integrand, exact = 1 + 2 * x[0] - 3 * x[1] + x[2], 1.0 + 1.0 - 1.5 + 0.5
+    with caplog.at_level(logging.WARNING, logger="UFL"):
+        value = fem.assemble_scalar(fem.form(integrand * ufl.dx(domain=msh, metadata=vertex_rule(cell))))
+        assert abs(comm.allreduce(value, op=MPI.SUM) - exact) < 1e-14
+        if cell == "tetrahedron":
+            boundary = fem.assemble_scalar(fem.form((1 + x[0]) * ufl.ds(domain=msh,
+                                                                       metadata=vertex_rule("triangle"))))
+            assert abs(comm.allreduce(boundary, op=MPI.SUM) - 9.0) < 1e-13
+    assert not [r for r in caplog.records if "metadata" in r.getMessage()], caplog.records
+    with pytest.raises(ValueError, match="vertex_rule: cell must be one of"):
+        vertex_rule("hexahedron")

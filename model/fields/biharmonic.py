@@ -30,20 +30,8 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from forms.quadrature import vertex_rule
 from model import compat
-
-#: the vertex (nodal) quadrature rule per reference cell: points the vertices, weights |cell| / vertices
-_VERTICES = {"triangle": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
-             "tetrahedron": np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])}
-_VOLUME = {"triangle": 0.5, "tetrahedron": 1.0 / 6.0}
-
-
-def vertex_rule(cell: str) -> dict:
-    """Quadrature metadata of the vertex rule on ``cell``: the lumped mass of P1 (exact for P1 x P0 products)."""
-    points = _VERTICES[cell]
-    return {"quadrature_rule": "custom", "quadrature_degree": 1, "quadrature_points": points,
-            "quadrature_weights": np.full(len(points), _VOLUME[cell] / len(points))}
-
 
 Handle = tuple[int, np.ndarray]
 
@@ -225,5 +213,4 @@ def bounded_biharmonic_weights(msh, handles: Sequence[Handle], tao_type: str = "
     return raw, reports
 
 
-__all__ = ["Handle", "biharmonic_weights", "bilaplacian", "bounded_biharmonic_weights", "handle_at_point",
-           "vertex_rule"]
+__all__ = ["Handle", "biharmonic_weights", "bilaplacian", "bounded_biharmonic_weights", "handle_at_point"]

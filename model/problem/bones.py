@@ -46,6 +46,7 @@ from petsc4py import PETSc
 
 from forms.motions import Bone, RigidMotion, Stationary, Transform
 from forms.obstacles import Obstacle, gap, sliding_energy
+from forms.quadrature import vertex_rule
 from model import compat
 from model.problem import ElasticityProblem
 
@@ -90,12 +91,6 @@ class MovingFrame:
 
 # --- surfaces -------------------------------------------------------------------------------------
 
-#: the vertex rule on the reference triangle: int f dA ~ (A/3) sum of f at the vertices
-_VERTEX_RULE = {"quadrature_rule": "custom", "quadrature_degree": 1,
-                "quadrature_points": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
-                "quadrature_weights": np.full(3, 1.0 / 6.0)}
-
-
 def surface_measure(problem: ElasticityProblem, surface: str, quadrature_degree: int | str | None = None
                     ) -> ufl.Measure:
     """ds restricted to a named boundary, with an explicit quadrature.
@@ -110,7 +105,7 @@ def surface_measure(problem: ElasticityProblem, surface: str, quadrature_degree:
     if quadrature_degree == "vertex":
         if problem.degree != 1:
             raise ValueError("quadrature_degree: the vertex rule is for P1 displacements only")
-        metadata = dict(_VERTEX_RULE)
+        metadata = vertex_rule("triangle")  # on the tetrahedra's facets
     elif quadrature_degree is None:
         metadata = {"quadrature_degree": problem.quadrature_degree}
     elif isinstance(quadrature_degree, int) and not isinstance(quadrature_degree, bool) and quadrature_degree >= 1:

@@ -48,19 +48,14 @@ from petsc4py import PETSc
 from scipy.sparse import coo_matrix, csr_matrix
 
 from forms.obstacles import Obstacle, augmented_lagrangian_energy, contact_pressure, penalty_energy
+from forms.quadrature import vertex_rule
 from model import compat
 from model.problem.membrane import MembraneProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MembranePairContact", "ObstacleContact", "VERTEX_RULE", "contact_fraction", "nodal_measure",
+__all__ = ["MembranePairContact", "ObstacleContact", "contact_fraction", "nodal_measure",
            "pair_contacts"]
-
-#: the nodal quadrature on a triangle: (A/3) at each vertex (reference triangle of area 1/2)
-VERTEX_RULE = {"quadrature_rule": "custom", "quadrature_degree": 1,
-               "quadrature_points": np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
-               "quadrature_weights": np.full(3, 1.0 / 6.0)}
-
 
 def nodal_measure(problem: MembraneProblem, region: str | None = None) -> ufl.Measure:
     """dA over the membrane's cells (or its cell region ``region``) with the vertex rule.
@@ -68,7 +63,7 @@ def nodal_measure(problem: MembraneProblem, region: str | None = None) -> ufl.Me
     Always restricted to tagged cells: on dolfinx 0.5 FFCx merges two quadrature rules of the same (untagged)
     cell integral into one kernel that does not compile on a manifold (J declared twice)."""
     dx = ufl.Measure("dx", domain=problem.domain.mesh, subdomain_data=problem.domain.cell_tags,
-                     metadata=dict(VERTEX_RULE))
+                     metadata=vertex_rule("triangle"))
     regions = problem.domain.regions
     if region is not None:
         error = problem.domain.region_error(region)
