@@ -34,7 +34,7 @@ def _axis(pieces: list[tuple[float, float]], h: float) -> tuple[np.ndarray, list
 
 
 def slotted_block(length: float = 2.0, width: float = 0.5, arm: float = 0.4, slot: float = 0.05,
-                  spine: float = 0.5, h: float = 0.25, shift: float = 0.0) -> MeshData:
+                  spine: float = 0.5, h: float = 0.25) -> MeshData:
     """The slotted block (module docstring).
 
     Returns
@@ -57,9 +57,6 @@ def slotted_block(length: float = 2.0, width: float = 0.5, arm: float = 0.4, slo
     cells = (len(x) - 1, len(y) - 1, len(z) - 1)
     ijk = grid_indices(cells)
     points = np.stack([x[ijk[:, 0]], y[ijk[:, 1]], z[ijk[:, 2]]], axis=1)
-    if shift:  # the upper arm's nodes moved along x by shift sin(pi (x - spine) / (length - spine))
-        upper = points[:, 2] > arm + 0.5 * slot
-        points[upper, 0] += shift * np.sin(np.pi * np.clip((points[upper, 0] - spine) / (length - spine), 0, 1))
     nx, ny, nz = cells
     k, _, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
     solid = ~((i.ravel() >= i_slot) & (k.ravel() == k_slot))

@@ -163,3 +163,20 @@ def test_bad_input_is_refused() -> None:
         BodyContact(problem, "slot", "slot", 1e6)
     with pytest.raises(ValueError, match="surface"):
         SelfContact(problem, "nowhere", 1e6)
+
+
+def test_config_self_contact_keys() -> None:
+    """[[contact]] self_contact = true: a one-line ConfigError naming the key for what does not go with it."""
+    from model.config.base import ConfigError
+    from model.config.contact import parse_contact
+
+    good = parse_contact({"surface": "slot", "self_contact": True, "method": "penalty", "penalty": 1e6, "rings": 3,
+                          "reach": 0.1}, "contact")
+    assert good.self_contact and good.rings == 3 and good.reach == 0.1
+    for extra, key in (({"master": "slot_upper"}, "master"), ({"rings": 0}, "rings"), ({"reach": -1.0}, "reach"),
+                       ({"sliding": True}, "sliding"), ({"obstacle": "plane"}, "obstacle")):
+        raw = {"surface": "slot", "self_contact": True, "method": "penalty", "penalty": 1e6, **extra}
+        with pytest.raises(ConfigError, match=f"contact.{key}"):
+            parse_contact(raw, "contact")
+    with pytest.raises(ConfigError, match="contact.rings"):
+        parse_contact({"surface": "slot", "master": "x", "method": "penalty", "penalty": 1e6, "rings": 2}, "contact")
