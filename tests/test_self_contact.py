@@ -180,3 +180,25 @@ def test_config_self_contact_keys() -> None:
             parse_contact(raw, "contact")
     with pytest.raises(ConfigError, match="contact.rings"):
         parse_contact({"surface": "slot", "master": "x", "method": "penalty", "penalty": 1e6, "rings": 2}, "contact")
+
+
+def test_config_self_contact_needs_p1_and_a_known_surface() -> None:
+    """The example's document: degree 2 is refused at parse time (contact[0].self_contact), an unknown surface when
+    the contact is built (contact.surface), both before any solve."""
+    import tomllib
+    from pathlib import Path
+
+    from model.config import parse
+    from model.config.base import ConfigError
+    from model.problem.contact import build_contact
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    raw = tomllib.loads((examples / "self_contact_slot.toml").read_text())
+    spec = parse(raw, examples).contacts[0]
+    assert spec.self_contact and spec.surface == "slot"
+    with pytest.raises(ConfigError, match=r"contact\[0\]\.self_contact: self-contact needs P1"):
+        parse({**raw, "discretization": {"degree": 2}}, examples)
+    problem = slotted(0.1)
+    with pytest.raises(ConfigError, match="contact.surface"):
+        build_contact(problem, spec.model_copy(update={"surface": "nowhere"}))
+    assert isinstance(build_contact(problem, spec), SelfContact)
