@@ -40,7 +40,7 @@ def slotted(closure: float) -> ElasticityProblem:
     return problem
 
 
-def solve(problem: ElasticityProblem, steps: int = 4, most: int = 25) -> dict:
+def solve(problem: ElasticityProblem, steps: int = 4) -> dict:
     solver = NewtonSolver(problem, options=OPTIONS, objective=False)
     records: list = []
     assert step_loads(solver, steps, on_step=records.append).completed
@@ -48,7 +48,7 @@ def solve(problem: ElasticityProblem, steps: int = 4, most: int = 25) -> dict:
     out = reactions(problem, residual)
     residual.destroy()
     solver.destroy()
-    assert max(r.result.iterations for r in records) <= most, [r.result.iterations for r in records]
+    assert max(r.result.iterations for r in records) <= 25, [r.result.iterations for r in records]
     return out
 
 
@@ -107,15 +107,21 @@ def test_self_contact_is_the_two_surface_contact_of_the_slot_faces() -> None:
 
 
 def test_penetration_shrinks_as_one_over_k() -> None:
-    """k = 1e5, 1e6, 1e7: the largest penetration falls by nearly 10 per decade of k (by more as the pressure
-    converges), and so does the change of the displacements."""
-    penetrations, solutions = [], []
-    for k in (1e5, 1e6, 1e7):
-        problem = slotted(0.1)
-        pair = SelfContact(problem, "slot", k)
-        solve(problem, steps=8, most=30)  # full Newton steps converge linearly (rate ~0.36)
+    """k = 1e5, 1e6, 1e7 (each k from the last one's answer at full load: the same answers as from rest, 1e-14, in
+    a third of the Newton iterations): the largest penetration falls by nearly 10 per decade of k (by more as the
+    pressure converges), and so does the change of the displacements."""
+    problem = slotted(0.1)
+    pair = SelfContact(problem, "slot", 1e5)
+    solve(problem, steps=8)
+    penetrations, solutions = [pair.report()["max_penetration"]], [gathered(problem)]
+    solver = NewtonSolver(problem, options=OPTIONS, objective=False)
+    for k in (1e6, 1e7):
+        pair.k.value = k
+        result = solver.solve()
+        assert result.converged and result.iterations <= 25, result
         penetrations.append(pair.report()["max_penetration"])
         solutions.append(gathered(problem))
+    solver.destroy()
     # measured 3.70e-3, 5.75e-4, 6.61e-5 (ratios 6.4, 8.7: k g = the largest nodal pressure 370, 575, 661 still
     # grows as the contact stiffens and concentrates), total normal force 464, 498, 502
     assert 5.0 < penetrations[0] / penetrations[1] < penetrations[1] / penetrations[2] < 10.5
