@@ -27,9 +27,10 @@ into each other: refine the mesh) and a penetration deeper than ``reach`` (the n
 through: choose k so that the penetration p/k stays well below it). P1 displacement formulation only.
 
 Measured on the slotted block (tests/test_self_contact.py, docs/layers.md): the same answer as the two-surface
-contact of the slot's faces both ways (difference 0), Newton with full steps converging linearly (rate ~0.36, the
-nodes on the other face's vertices). The augmented Lagrangian gives the pairs' answer too but its Uzawa updates
-stall near 1e-7 x size (two passes: both sides' multipliers share the load in no unique way).
+contact of the slot's faces both ways (difference 0), Newton with full steps converging linearly (rate ~0.36: the
+BodyContact tangent lags the rotation of n_T, terms k g dn/du; J d is 0.3 % off central differences of R there).
+The augmented Lagrangian gives the pairs' answer too but its Uzawa updates stall near 1e-7 x size (two passes: both
+sides' multipliers share the load in no unique way).
 """
 
 from __future__ import annotations
@@ -154,12 +155,11 @@ class SelfContact(BodyContact):
         return best_t, best_b, paired
 
     def potential_reason(self) -> str | None:
-        """A self-contact pair has no consistent potential for the line search: its nodes sit on the master's
-        vertices and edges (both sides are slaves), where the lagged pairing (T, b_j, n_T) switches between the
-        triangles of a bent face; backtracking on the total potential stalled there (the slotted block: |R| stuck
-        at 1e-5 |R_0|, SNES stopped by snes_stol), full Newton steps converge (tests/test_self_contact.py)."""
-        return (f"the self-contact {self.name} pairs nodes with the triangles of their own surface (lagged pairing "
-                "on vertices and edges)")
+        """Full Newton steps for a self-contact pair: backtracking on the total potential stalled on the slotted block
+        (|R| stuck at 1e-5 |R_0|, SNES stopped by snes_stol) with the tangent's lagged normal rotation (module
+        docstring); full steps converge (tests/test_self_contact.py)."""
+        return (f"the self-contact {self.name}: backtracking on the total potential stalls with the lagged normal "
+                "rotation in the tangent (full Newton steps)")
 
     def update(self) -> None:
         """BodyContact.update; the augmented multiplier of a node not paired is reset to 0. Collective."""
