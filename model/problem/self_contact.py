@@ -28,7 +28,7 @@ through: choose k so that the penetration p/k stays well below it). P1 displacem
 
 Measured on the slotted block (tests/test_self_contact.py, docs/layers.md): the same answer as the two-surface
 contact of the slot's faces both ways (difference 0), Newton with full steps converging linearly (rate ~0.36: the
-BodyContact tangent lags the rotation of n_T, terms k g dn/du; J d is 0.3 % off central differences of R there).
+BodyContact tangent lags the pairing, T, b_j and n_T; J d is 0.3 % off central differences of R there).
 The augmented Lagrangian gives the pairs' answer too but its Uzawa updates stall near 1e-7 x size (two passes: both
 sides' multipliers share the load in no unique way).
 """
@@ -156,10 +156,10 @@ class SelfContact(BodyContact):
 
     def potential_reason(self) -> str | None:
         """Full Newton steps for a self-contact pair: backtracking on the total potential stalled on the slotted block
-        (|R| stuck at 1e-5 |R_0|, SNES stopped by snes_stol) with the tangent's lagged normal rotation (module
-        docstring); full steps converge (tests/test_self_contact.py)."""
-        return (f"the self-contact {self.name}: backtracking on the total potential stalls with the lagged normal "
-                "rotation in the tangent (full Newton steps)")
+        (|R| stuck at 1e-5 |R_0|, SNES stopped by snes_stol) with the tangent's lagged pairing (module docstring);
+        full steps converge (tests/test_self_contact.py)."""
+        return (f"the self-contact {self.name}: backtracking on the total potential stalls with the lagged "
+                "pairing in the tangent (full Newton steps)")
 
     def update(self) -> None:
         """BodyContact.update; the augmented multiplier of a node not paired is reset to 0. Collective."""
