@@ -170,9 +170,10 @@ class SelfContact(BodyContact):
             self.multiplier.x.scatter_forward()
 
     def report(self) -> dict[str, Any]:
-        """BodyContact.report (force: the net contact force on the body, ~0: the two sides' forces cancel;
-        normal_force: int p dA over every pressed node of both sides) and paired_points (nodes with a master
-        point, pressed or not), the same on every rank."""
+        """BodyContact.report (force: int p n_T dA over the slave nodes of both sides, not the net contact force on
+        the body, which is 0 (contact_residual: the master terms Pi^T cancel it); normal_force: int p dA over every
+        pressed node of both sides) and paired_points (nodes with a master point, pressed or not), the same on
+        every rank."""
         self.update()
         report = super().report()
         report["paired_points"] = int(self.comm.allreduce(int(np.sum(self.paired)), op=MPI.SUM))
