@@ -26,6 +26,8 @@ stacked_    lower upper (two separate bodies, one on the      <body>_xmin ... <b
 blocks      other: contact between bodies)
 sphere_pair upper lower (two ball octants touching at the     <body>_xmin <body>_ymin upper_zmax lower_zmin
             origin: Hertz contact of deformable spheres)      <body>_sphere <body>_surface
+slotted_    body (a C: two arms across a thin slot; self-     xmin xmax ymin ymax zmin zmax slot_lower slot_upper
+block       contact)                                          slot_end slot surface
 =========== ================================================ =======================
 
 A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
@@ -55,6 +57,7 @@ from meshes.data import MeshData, from_gmsh_model, read_msh, write_msh
 from meshes.fusiform import fusiform
 from meshes.geo import geo_parameters, read_geo
 from meshes.layered_arm import layered_arm
+from meshes.slotted import slotted_block
 from meshes.sphere import sphere, sphere_pair
 from meshes.trunk import trunk
 
@@ -75,6 +78,7 @@ __all__ = [
     "read_geo",
     "read_msh",
     "sphere",
+    "slotted_block",
     "sphere_pair",
     "stacked_blocks",
     "trunk",
@@ -93,6 +97,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "layered_arm": layered_arm,
     "stacked_blocks": stacked_blocks,
     "sphere_pair": sphere_pair,
+    "slotted_block": slotted_block,
 }
 
 

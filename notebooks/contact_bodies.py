@@ -20,6 +20,7 @@
 #
 # 1. Two unit blocks one on the other (`examples/contact_bodies.toml`), a pressure $p = 200$ on top: the contact
 #    force is $p A$ and the top moves as one $1 \times 1 \times 2$ block.
+# 3. Self-contact of one body (below, `examples/self_contact_slot.toml`): a slotted block whose slot closes.
 # 2. Two elastic spheres ($R = 1$, $E_2 = 2 E_1$, $\nu = 0.3$; octants with symmetry planes, non-matching meshes)
 #    pressed together: force against approach and the pressure against Hertz,
 #    $F = \frac43 E^* \sqrt{R_{eff}}\, d^{3/2}$, $a = \sqrt{R_{eff} d}$, $p = p_0 \sqrt{1 - r^2/a^2}$,
@@ -156,3 +157,48 @@ if plt is not None:
     ax.set_title(f"pressure at d = {last.approach:g}", fontsize=10)
     fig.tight_layout()
     fig.savefig(OUT / "hertz_spheres.png", dpi=110)
+
+
+# %% [markdown]
+# ## Self-contact: a slotted block closes its slot
+#
+# `[[contact]] self_contact = true` (docs/layers.md, "Self-contact of one body"): the surface `slot` (both faces of
+# the slot of `meshes.slotted_block`) is its own slave and master; a node pairs only with triangles outside its
+# 2-ring that face it (normals more than 120 degrees apart) within reach. Bottom clamped, top clamped and moved
+# down by 0.1 (the slot is 0.05 wide): the slot closes from its open end, the spine holds it open near x = 0.5.
+
+# %%
+raw = tomllib.loads((ROOT / "examples" / "self_contact_slot.toml").read_text())
+raw["output"] = {"dir": str(OUT / "slot"), "png": False, "xdmf": False, "vtu": True}
+if CI:
+    raw["loading"] = {"steps": 4}
+summary = run(parse(raw, ROOT / "examples"), OUT / "slot")
+slot = summary["steps"][-1]["contact_pairs"]["slot-self"]
+reactions = summary["steps"][-1]["reactions"]
+print(f"status {summary['status']}; self-contact: {slot['active_points']} pressed of {slot['paired_points']} paired "
+      f"nodes, normal force {slot['normal_force']:.2f}, max penetration {slot['max_penetration']:.2e}; "
+      f"reactions z: top {reactions['zmax'][2]:.3f}, bottom {reactions['zmin'][2]:.3f}")
+assert summary["status"] == "completed" and slot["active_points"] > 20
+assert abs(reactions["zmax"][2] + reactions["zmin"][2]) < 1e-6 * abs(reactions["zmax"][2])  # internal forces
+
+# %%
+vtu = meshio.read(sorted((OUT / "slot").glob("step_*.vtu"))[-1])
+if plt is not None:
+    tets = vtu.cells_dict["tetra"]
+    faces = np.sort(tets[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3), axis=1)
+    unique, counts = np.unique(faces, axis=0, return_counts=True)
+    boundary = unique[counts == 1]
+    front = boundary[np.all(np.abs(vtu.points[boundary, 1]) < 1e-12, axis=1)]  # the face y = 0
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4))
+    for ax, (points, title) in zip(axes, ((vtu.points, "at rest"),
+                                          (vtu.points + vtu.point_data["u"], "top moved down 0.1 (true scale)"))):
+        for tri in points[front]:
+            ax.fill(tri[:, 0], tri[:, 2], facecolor="tab:orange", edgecolor="k", linewidth=0.3, alpha=0.7)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x")
+        ax.set_ylabel("z")
+        ax.set_title(f"slotted block, face y = 0, {title}", fontsize=10)
+    axes[1].set_title(f"slot closed by self-contact: {slot['active_points']} nodes pressed, "
+                      f"normal force {slot['normal_force']:.0f}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(OUT / "self_contact_slot.png", dpi=110)

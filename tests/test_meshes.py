@@ -114,7 +114,7 @@ def muscle() -> MeshData:
 
 def test_registry_names() -> None:
     assert set(GENERATORS) == {"arm_segment", "box", "cylinder", "cook", "fusiform", "layered_arm", "sphere",
-                               "sphere_pair", "stacked_blocks", "trunk"}
+                               "sphere_pair", "stacked_blocks", "trunk", "slotted_block"}
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
@@ -463,7 +463,7 @@ def test_generate_passes_parameters() -> None:
     ("name", "params", "message"),
     [
         ("blob", {}, "unknown mesh generator 'blob'; available: arm_segment, box, cook, cylinder, fusiform, "
-                       "layered_arm, sphere"),
+                       "layered_arm, slotted_block, sphere"),
         ("cylinder", {"radiu": 1.0}, "cylinder: unknown parameter 'radiu'"),
         ("cylinder", {"radius": -1.0}, "cylinder: radius must be > 0, got -1.0"),
         ("cylinder", {"size": 0}, "cylinder: size must be > 0, got 0.0"),
@@ -485,3 +485,27 @@ def test_generate_errors(name: str, params: dict[str, object], message: str) -> 
         generate(name, **params)
     assert message in str(info.value)
     assert isinstance(info.value, ParameterError)
+
+
+def test_slotted_block() -> None:
+    """meshes.slotted_block: the volume of the block less the slot, the slot's faces at z = a and a + s over
+    x in [spine, L] (area (L - spine) W each), slot = slot_lower + slot_upper, surface = the whole boundary."""
+    from meshes.slotted import slotted_block
+    from meshes.topology import boundary_facets
+
+    L, W, a, s, spine = 2.0, 0.5, 0.4, 0.05, 0.5
+    mesh = slotted_block(L, W, a, s, spine, h=0.25)
+    assert mesh.volume() == pytest.approx(L * W * (2 * a + s) - (L - spine) * W * s, rel=1e-12)
+
+    def area(name: str) -> float:
+        tri = mesh.points[mesh.boundary_facets(name)]
+        return float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
+
+    for name, z in (("slot_lower", a), ("slot_upper", a + s)):
+        tri = mesh.points[mesh.boundary_facets(name)]
+        assert np.allclose(tri[:, :, 2], z) and tri[:, :, 0].min() == pytest.approx(spine)
+        assert area(name) == pytest.approx((L - spine) * W, rel=1e-12)
+    assert area("slot_end") == pytest.approx(W * s, rel=1e-12)
+    assert key_set(mesh.boundary_facets("slot")) == key_set(mesh.boundary_facets("slot_lower")) | \
+        key_set(mesh.boundary_facets("slot_upper"))
+    assert key_set(mesh.boundary_facets("surface")) == key_set(boundary_facets(mesh.cells))

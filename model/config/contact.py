@@ -1,5 +1,7 @@
 """[[contact]]: frictionless contact of a boundary of the body with a rigid obstacle, or of two bodies (ContactSpec).
 
+With ``self_contact`` = true the surface is its own master (model.problem.self_contact.SelfContact: penalty,
+optionally augmented; ``rings`` and ``reach`` set which of its triangles a node may pair with).
 With ``master`` (a boundary of another body of the same mesh) the contact is between deformable bodies
 (model.problem.body_contact.BodyContact: penalty, optionally augmented Lagrangian, or ``sliding`` = true, the
 thesis' zero-length normal springs); ``master`` excludes ``obstacle``, ``bone`` and the shape keys.
@@ -28,7 +30,8 @@ def _contact_schema(schema: dict[str, Any]) -> None:
     """The obstacle's keys by kind; a contact on a bone may leave them out (it takes the bone's shape)."""
     shape_keys_schema(schema)
     schema["required"] = [k for k in schema.get("required", []) if k != "obstacle"]
-    schema["anyOf"] = [{"required": ["obstacle"]}, {"required": ["bone"]}, {"required": ["master"]}]
+    schema["anyOf"] = [{"required": ["obstacle"]}, {"required": ["bone"]}, {"required": ["master"]},
+                       {"required": ["self_contact"]}]
     schema.setdefault("allOf", []).append(
         {"if": {"required": ["master"]},
          "then": {"properties": {k: False for k in ("obstacle", "bone", *ALL_SHAPE_KEYS)}},
@@ -55,6 +58,14 @@ class ContactSpec(Variant):
                         "springs, (k/2) g^2; false: contact, (k/2) min(g, 0)^2)", default=False)
     exact: Flag = key("sliding only: the energy (k/2) d^2, d the distance to master's deformed triangles, with its "
                       "exact derivatives (a consistent potential: backtracking on it; docs/layers.md)", default=False)
+    self_contact: Flag = key("the surface against itself (self-contact of one body: its nodes against its own deformed "
+                             "triangles outside their neighbourhood, facing them; no master, obstacle or bone; "
+                             "docs/layers.md)", default=False)
+    rings: Annotated[Integer, Field(ge=1)] | None = key(
+        "self_contact only: a node never pairs with a triangle that has a vertex within rings - 1 edges of it "
+        "(default 2)", default=None)
+    reach: Positive | None = key("self_contact only: the farthest master point a node pairs with (default: the "
+                                 "surface's mean edge length at rest)", "m (length)", default=None)
     bone: Name | None = key("name of a [[bone]]: the obstacle moves with it (and is its shape when obstacle is not "
                             "given)", default=None)
     penalty: Positive | None = key("penalty stiffness k per unit reference area and unit penetration",
@@ -82,6 +93,18 @@ class ContactSpec(Variant):
     def _master_or_obstacle(cls, data: Any) -> Any:
         """master excludes the obstacle, its bone and its shape keys; without master an obstacle (or bone)."""
         if isinstance(data, dict):
+            if data.get("self_contact") is True:
+                if data.get("method", "penalty") != "penalty":
+                    fail(f"self-contact needs method = \"penalty\", not {data['method']!r}", "method")
+                for k in ("master", "sliding", "exact", "bone", "obstacle", *ALL_SHAPE_KEYS):
+                    if k in data:
+                        fail("not with self_contact = true (the surface is its own master)", k)
+                if data.get("quadrature_degree", "vertex") != "vertex":
+                    fail("self-contact always uses the nodal rule (\"vertex\"): leave it out", "quadrature_degree")
+                return data
+            for k in ("rings", "reach"):
+                if k in data:
+                    fail("only with self_contact = true", k)
             if "master" in data:
                 if data.get("method", "penalty") != "penalty":
                     fail(f"contact between bodies (master) needs method = \"penalty\", not {data['method']!r}",
@@ -148,7 +171,8 @@ class PenaltyContact(ContactSpec):
     """method = "penalty": the energy (k/2) min(g, 0)^2 per unit reference area (g the gap), or with
     augmented = true its augmented Lagrangian with Uzawa updates."""
 
-    keys = (*_SHAPE_AND_COMMON, "master", "sliding", "exact", "penalty", "augmented", "tolerance", "max_uzawa",
+    keys = (*_SHAPE_AND_COMMON, "master", "sliding", "exact", "self_contact", "rings", "reach", "penalty", "augmented",
+            "tolerance", "max_uzawa",
             "quadrature_degree")
     method: Literal["penalty"] = key("a penalty energy on the penetration")
     penalty: Positive = key("the penalty stiffness k > 0, per unit reference area and unit penetration",

@@ -146,6 +146,9 @@ class RunConfig(Section):
         pairs: dict[tuple[str, str], int] = {}
         degree, formulation = self.discretization.degree, self.discretization.formulation
         for i, c in enumerate(self.contacts):
+            if c.self_contact and (degree != 1 or formulation != "displacement"):
+                fail(f"self-contact needs P1 displacements (discretization.degree = 1, formulation = "
+                     f"\"displacement\"), got degree {degree}, {formulation!r}", "contact", i, "self_contact")
             if c.master is None:
                 continue
             if degree != 1 or formulation != "displacement":

@@ -144,12 +144,17 @@ class BodyContact:
     surfaces of the problem's mesh (module docstring). Adds its energy to the problem and registers itself as a
     coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices).
     ``exact`` (sliding only): the energy (k/2) d^2, d the distance to the faceted master surface, with its exact
-    derivatives (module docstring, "Exact sliding"); otherwise the gap along the interpolated normals."""
+    derivatives (module docstring, "Exact sliding"); otherwise the gap along the interpolated normals.
+    ``smallest_ties``: equal distances (1e-14 relative) to the smallest global triangle (the same pairing on any
+    partition; default: with ``exact`` only)."""
+
+    #: slave and master are one surface (SelfContact: its search leaves out the node's own neighbourhood)
+    self_contact = False
 
     def __init__(self, problem: ElasticityProblem, slave: str, master: str, k: float, kind: str = "contact",
                  neighbours: int = 8, name: str | None = None, augmented: bool = False, tolerance: float = 1e-8,
                  max_uzawa: int = 25, smooth_normals: bool | None = None, leave_shared: bool | None = None,
-                 exact: bool = False) -> None:
+                 exact: bool = False, smallest_ties: bool | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"kind: {kind!r} is not one of {', '.join(KINDS)}")
         if not (np.isfinite(k) and k > 0):
@@ -162,6 +167,9 @@ class BodyContact:
             raise ValueError(f"max_uzawa: {max_uzawa!r} must be an integer >= 1")
         self.augmented, self.tolerance, self.max_uzawa = augmented, float(tolerance), max_uzawa
         self.exact = bool(exact)
+        #: ties in the closest-triangle search to the smallest global triangle (default: exact sliding only; else
+        #: the first of the nearest centroids, which on aligned meshes may differ between partitions)
+        self.smallest_ties = self.exact if smallest_ties is None else bool(smallest_ties)
         if self.exact and kind != "sliding":
             raise ValueError("exact: the squared distance to the master surface is the sliding energy "
                              "(kind = 'sliding')")
@@ -198,8 +206,10 @@ class BodyContact:
         self.P: list[PETSc.Mat] = []  # exact sliding: the selection matrices of the three vertex slots
         if self.leave_shared and kind == "sliding":
             self._leave_shared()
+        if slave == master and not self.self_contact:
+            raise ValueError(f"master: {master!r} is the slave surface (self-contact: SelfContact)")
         shared = np.intersect1d(self.slave_blocks, self.master_local.ravel())
-        if self.comm.allreduce(len(shared), op=MPI.SUM):
+        if not self.self_contact and self.comm.allreduce(len(shared), op=MPI.SUM):
             raise ValueError(f"master: {master!r} shares nodes with {slave!r} (give a boundary of another body: "
                              "meshes.combine keeps bodies apart)")
         # the master point data at the slave nodes: X*, n and z (master displacement there)
@@ -244,6 +254,7 @@ class BodyContact:
         else:
             psi = penalty_energy(self.gap, self.k, touching)
         energy = psi * ds
+        self.energy = energy
         v, w = ufl.TestFunction(V), ufl.TrialFunction(V)
         dz = ufl.derivative(energy, self.z, v)
         pressure = contact_pressure(self.gap, self.k, self.multiplier) if kind == "contact" else -self.k * self.gap
@@ -345,8 +356,6 @@ class BodyContact:
     def update(self) -> None:
         """Pair every owned slave node with its closest master point at the current solution; set X*, n, z and
         the interpolation matrix Pi. Collective."""
-        from scipy.spatial import cKDTree
-
         current = self.problem.solution.x.array
         changed = self._stamp is None or not np.array_equal(self._stamp, current)
         if not self.comm.allreduce(changed, op=MPI.LOR):  # decided together: the pairing is collective
@@ -355,7 +364,44 @@ class BodyContact:
         u = current.reshape(-1, self.bs)
         slave = self.slave_blocks
         xs = self.reference[slave] + u[slave]
-        n = len(slave)
+        best_t, best_b, paired = self._search(xs, x_tri, g_tri)
+        best_b = best_b * paired[:, None]  # a node not paired: X* = z = 0, no row in Pi, n = 0 (below): g = 0
+        self.paired = paired
+        tri_x = x_tri[best_t]
+        if self.smooth_normals:  # the area-weighted nodal normals of the master surface, interpolated at x*
+            faces = np.cross(x_tri[:, 1] - x_tri[:, 0], x_tri[:, 2] - x_tri[:, 0])
+            ids, inverse = np.unique(g_tri.ravel(), return_inverse=True)
+            nodal = np.zeros((len(ids), 3))
+            np.add.at(nodal, np.asarray(inverse).reshape(-1), np.repeat(faces, 3, axis=0))
+            nodal /= np.maximum(np.linalg.norm(nodal, axis=1, keepdims=True), 1e-300)
+            normal = np.einsum("ij,ijk->ik", best_b, nodal[np.asarray(inverse).reshape(-1, 3)[best_t]])
+        else:
+            normal = np.cross(tri_x[:, 1] - tri_x[:, 0], tri_x[:, 2] - tri_x[:, 0])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        normal[~paired] = 0.0
+        X_star = np.einsum("ij,ijk->ik", best_b, X_tri[best_t])
+        z = np.einsum("ij,ijk->ik", best_b, x_tri[best_t] - X_tri[best_t])
+        for function, values in ((self.X_star, X_star), (self.normal, normal), (self.z, z)):
+            array = function.x.array.reshape(-1, self.bs)
+            array[:] = 0.0
+            array[slave] = values
+            function.x.scatter_forward()
+        if self.exact:
+            self._set_slots(best_b, X_tri[best_t], x_tri[best_t], g_tri[best_t])
+        else:
+            if self.Pi is not None:
+                self.Pi.destroy()
+            self.Pi = self._selection(best_b, g_tri[best_t])
+        self._stamp = current.copy()
+
+    def _search(self, xs: np.ndarray, x_tri: np.ndarray, g_tri: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The closest master triangle to each slave point xs (n, 3) among the current master triangles x_tri
+        (m, 3, 3) (global block dofs g_tri): its index (n,), barycentric coordinates (n, 3) and whether the node
+        is paired (n,; here always). The k = ``neighbours`` triangles of nearest centroids are tried."""
+        from scipy.spatial import cKDTree
+
+        n = len(xs)
         k = min(self.neighbours, len(x_tri))
         best_d = np.full(n, np.inf)
         best_t = np.zeros(n, dtype=np.int64)
@@ -372,37 +418,12 @@ class BodyContact:
                 d = np.linalg.norm(xs - closest, axis=1)
                 tol = 1e-14 * np.maximum(d, 1.0)
                 better = d < best_d - tol
-                if self.exact:  # ties (a node on an edge, a vertex, a bisector) to the smallest global triangle:
+                if self.smallest_ties:  # ties (a node on an edge, a vertex, a bisector) to the smallest triangle:
                     key = triangle_key[near[:, j]]  # the same choice on any partition
                     better |= (np.abs(d - best_d) <= tol) & (key < best_key)
                 best_key = np.where(better, triangle_key[near[:, j]], best_key)
                 best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better]
-        tri_x = x_tri[best_t]
-        if self.smooth_normals:  # the area-weighted nodal normals of the master surface, interpolated at x*
-            faces = np.cross(x_tri[:, 1] - x_tri[:, 0], x_tri[:, 2] - x_tri[:, 0])
-            ids, inverse = np.unique(g_tri.ravel(), return_inverse=True)
-            nodal = np.zeros((len(ids), 3))
-            np.add.at(nodal, np.asarray(inverse).reshape(-1), np.repeat(faces, 3, axis=0))
-            nodal /= np.maximum(np.linalg.norm(nodal, axis=1, keepdims=True), 1e-300)
-            normal = np.einsum("ij,ijk->ik", best_b, nodal[np.asarray(inverse).reshape(-1, 3)[best_t]])
-        else:
-            normal = np.cross(tri_x[:, 1] - tri_x[:, 0], tri_x[:, 2] - tri_x[:, 0])
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-        X_star = np.einsum("ij,ijk->ik", best_b, X_tri[best_t])
-        z = np.einsum("ij,ijk->ik", best_b, x_tri[best_t] - X_tri[best_t])
-        for function, values in ((self.X_star, X_star), (self.normal, normal), (self.z, z)):
-            array = function.x.array.reshape(-1, self.bs)
-            array[:] = 0.0
-            array[slave] = values
-            function.x.scatter_forward()
-        if self.exact:
-            self._set_slots(best_b, X_tri[best_t], x_tri[best_t], g_tri[best_t])
-        else:
-            if self.Pi is not None:
-                self.Pi.destroy()
-            self.Pi = self._selection(best_b, g_tri[best_t])
-        self.distance = best_d
-        self._stamp = current.copy()
+        return best_t, best_b, np.ones(n, dtype=bool)
 
     def _set_slots(self, bary: np.ndarray, X_tri: np.ndarray, x_tri: np.ndarray, columns: np.ndarray) -> None:
         """Exact sliding: the region of each slave node's closest point (the number of nonzero b_j: 1 vertex,
@@ -467,6 +488,17 @@ class BodyContact:
                 local.array[: len(extra)] += extra
             Rz.destroy()
             out.destroy()
+
+    def contact_residual(self) -> PETSc.Vec:
+        """The pair's own nodal forces on the body's dofs, r = dPi_c/du + Pi^T dPi_c/dz at the current solution (minus
+        the contact force on each node; owned entries summed over the ranks). Collective."""
+        self.update()
+        if "Ru" not in self._ufl:
+            self._ufl["Ru"] = ufl.derivative(self.energy, self.problem.solution, ufl.TestFunction(self.V))
+        r = fem_petsc.assemble_vector(self._form("Ru"))
+        r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        self.add_residual(r)
+        return r
 
     def _assembled(self, key: str) -> PETSc.Mat:
         matrix = fem_petsc.assemble_matrix(self._form(key))

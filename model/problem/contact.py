@@ -328,6 +328,21 @@ def _body_contact(problem: ElasticityProblem, spec: ContactSpec, key: str) -> Bo
         raise ConfigError(f"{key}.{err}") from None
 
 
+def _self_contact(problem: ElasticityProblem, spec: ContactSpec, key: str) -> BodyContact:
+    """A [[contact]] with self_contact = true: model.problem.self_contact.SelfContact of the surface."""
+    from model.problem.self_contact import SelfContact
+
+    assert spec.penalty is not None
+    if problem.formulation != "displacement" or problem.degree != 1:
+        raise ConfigError(f"{key}.self_contact: self-contact needs P1 displacements (discretization.degree = 1, "
+                          f"formulation = \"displacement\")")
+    try:
+        return SelfContact(problem, spec.surface, spec.penalty, rings=spec.rings or 2, reach=spec.reach,
+                           augmented=spec.augmented, tolerance=spec.tolerance, max_uzawa=spec.max_uzawa)
+    except ValueError as err:
+        raise ConfigError(f"{key}.{err}") from None
+
+
 def build_contact(problem: ElasticityProblem, spec: ContactSpec, motion: RigidMotion | None = None,
                   key: str = "contact") -> Contact:
     """The contact object of a checked spec, its energy added to the problem (call before the solver).
@@ -339,6 +354,8 @@ def build_contact(problem: ElasticityProblem, spec: ContactSpec, motion: RigidMo
     error = problem.domain.boundary_error(spec.surface)
     if error:
         raise ConfigError(f"{key}.surface: {error}")
+    if spec.self_contact:
+        return _self_contact(problem, spec, key)
     if spec.master is not None:
         return _body_contact(problem, spec, key)
     if spec.method == "vi":
