@@ -28,10 +28,13 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import logging
 import signal
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict
 from functools import cache
 from pathlib import Path
@@ -111,10 +114,31 @@ def muscle_document(config: MembraneRunConfig, out: Path) -> str:
     return "\n".join(lines)
 
 
+@contextmanager
+def _collected() -> Iterator[None]:
+    """Collect the garbage on every rank now and not inside: the block has rank-0-only work (gmsh, meshio, the
+    configuration reader) while the other ranks wait in a collective, and a PETSc object left to the garbage
+    collector (a Newton with MUMPS: its destroy is collective) destroyed there on rank 0 alone would hang."""
+    gc.collect()
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
 def _muscle(config: MembraneRunConfig, problem: MembraneProblem, data: SurfaceMeshData | None, num_points: int,
             out: Path, comm: MPI.Comm) -> dict[str, Any]:
     """[muscle]: close the final surface, tetrahedralise, Laplace fibres, write the files (module docstring).
     Collective; returns summary.json's "muscle"."""
+    with _collected():
+        return _close_and_write(config, problem, data, num_points, out, comm)
+
+
+def _close_and_write(config: MembraneRunConfig, problem: MembraneProblem, data: SurfaceMeshData | None,
+                     num_points: int, out: Path, comm: MPI.Comm) -> dict[str, Any]:
     m, muscle = config.membrane, config.muscle
     tet_size = muscle.tet_size if muscle.tet_size is not None else m.size
     deformed = deformed_points(problem, num_points)
