@@ -3,8 +3,8 @@
 
 - the clamped neo-Hookean disc is inflated to V = 0.5 (to 1e-6 V), closed with its flat base and filled with
   tetrahedra: the tetrahedra of the written muscle.msh (read back with its physical groups) enclose the target
-  volume (the surface mesh is kept, so to round-off: measured 7.97e-10 = 1.6e-9 V from the target, the secant
-  stop's own tolerance, and 3.3e-16 V from the membrane's enclosed volume);
+  volume (the surface mesh is kept, so to round-off: measured 8.0e-10 = 1.6e-9 V from the target, the secant
+  stop's own tolerance, and 6.7e-16 V from the membrane's enclosed volume);
 - fibres.npy holds unit vectors; a cell with a face on the origin (phi = 0 on it, phi >= 0 inside: the maximum
   principle) has a0 = +e_z (the P1 phi is constant on the face: grad phi is its normal), one on the insertion
   -e_z; in the middle of the belly (|x| < 0.2) the fibres run from the origin's end to the insertion's, a0 . e_x
