@@ -15,6 +15,8 @@ pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig):
                    (model.problem.membrane_contact.ObstacleContact)
     [[contact]]    membrane-membrane contact between two regions of the surface (facing_discs: lower, upper),
                    penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact)
+    [extrusion]    before [inflation] (surface = "disc"): the disc extruded, inflated without contact to a first
+                   volume and smoothed into a new rest shape (the thesis' two phases)
     [muscle]       after the inflation (surface = "disc"): the patch closed with its flat base, filled with
                    tetrahedra, given Laplace fibres and written as muscle.msh, fibres.npy, muscle.vtu and a solid
                    run's configuration muscle.toml (the thesis' ch. 3.3.3; model.experiments.membrane)
@@ -262,6 +264,28 @@ class ContactSection(Section):
         return self.name or f"{self.surface}-{self.master}"
 
 
+class ExtrusionSection(Section):
+    """[extrusion]: the thesis' first inflation phase and new rest shape (ch. 3.3.3; model.experiments.membrane
+    .inflate_extruded_patch) before [inflation]: the disc is extruded by ``offset`` along its normal (the clamped
+    rim stays), inflated without contact until ``first_volume``, and its free nodes smoothed and relaxed until the
+    enclosed volume falls to ``rest_volume`` (meshes.membrane.smooth_rest_shape); [inflation] (with the
+    [[obstacle]]s) then inflates the membrane on that rest shape from u = 0. Needs surface = "disc" with its rim
+    clamped."""
+
+    offset: Positive = key("the extrusion of the free nodes along the disc's normal", "m (length)")
+    first_volume: Positive = key("the first phase's stop: the enclosed volume of the inflated extrusion (no "
+                                 "contact)", "m^3 (volume)")
+    rest_volume: Positive = key("the new rest shape's enclosed volume: the smoothing stops when the volume falls "
+                                "to it", "m^3 (volume)")
+
+    @model_validator(mode="after")
+    def _volumes(self) -> ExtrusionSection:
+        if self.rest_volume >= self.first_volume:
+            fail(f"{self.rest_volume!r} must be below first_volume ({self.first_volume!r}): the smoothing shrinks "
+                 "the inflated shape", "rest_volume")
+        return self
+
+
 #: the boundaries of the closed patch's tetrahedral mesh (model.experiments.membrane): the inflated patch, the flat
 #: base, and the base's two ends where the fibres start and end
 MUSCLE_BOUNDARIES = ("patch", "base", "origin", "insertion")
@@ -318,6 +342,8 @@ class MembraneRunConfig(Section):
     obstacles: tuple[ObstacleSection, ...] = key("rigid obstacles with a penalty", default=(), alias="obstacle")
     contacts: tuple[ContactSection, ...] = key("membrane-membrane contacts (two regions of the surface)",
                                                default=(), alias="contact")
+    extrusion: ExtrusionSection | None = key("before [inflation]: the disc extruded, inflated to a first volume "
+                                             "and smoothed into a new rest shape", default=None)
     muscle: MuscleSection | None = key("after the inflation: the patch closed, tetrahedralised, given Laplace "
                                        "fibres and written with a muscle run's configuration", default=None)
     output: MembraneOutput = key("results folder and files", default_factory=MembraneOutput)
@@ -335,6 +361,15 @@ class MembraneRunConfig(Section):
                     known = f"regions: {', '.join(regions)}" if regions else \
                         "no regions: membrane-membrane contact needs surface = 'facing_discs'"
                     fail(f"{self.membrane.surface} has no region {name!r} ({known})", "contact", i, k)
+        if self.extrusion is not None:
+            if self.membrane.surface != "disc":
+                fail(f"needs surface = 'disc' (the extruded patch), not {self.membrane.surface!r}", "extrusion")
+            if self.membrane.border.get("rim") != (0, 1, 2):
+                fail("needs the rim clamped (membrane.fixed = { rim = [0, 1, 2] }): the extrusion keeps it",
+                     "extrusion")
+            if "bump" in self.membrane.model_fields_set:
+                fail("not with [extrusion] (the first phase starts from the extruded disc, the second from its rest "
+                     "shape)", "membrane", "bump")
         if self.muscle is not None:
             if self.membrane.surface != "disc":
                 fail(f"needs surface = 'disc' (a patch closed with its flat base), not {self.membrane.surface!r}",
@@ -384,6 +419,6 @@ def load_membrane(path: str | Path, overrides: dict[str, Any] | None = None) -> 
     return parse_membrane(raw, path.parent)
 
 
-__all__ = ["ContactSection", "InflationSection", "LAW_PARAMETERS", "MUSCLE_BOUNDARIES", "MUSCLE_FILES",
-           "MembraneOutput", "MembraneRunConfig", "MembraneSection", "MuscleSection", "ObstacleSection", "SURFACES",
-           "SURFACE_KEYS", "is_membrane", "load_membrane", "parse_membrane"]
+__all__ = ["ContactSection", "ExtrusionSection", "InflationSection", "LAW_PARAMETERS", "MUSCLE_BOUNDARIES",
+           "MUSCLE_FILES", "MembraneOutput", "MembraneRunConfig", "MembraneSection", "MuscleSection", "ObstacleSection",
+           "SURFACES", "SURFACE_KEYS", "is_membrane", "load_membrane", "parse_membrane"]

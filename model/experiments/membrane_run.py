@@ -45,20 +45,61 @@ from mpi4py import MPI
 
 from forms.membrane import MembraneLaw, membrane_law
 from meshes.data import MeshData, read_msh, write_msh
-from meshes.membrane import SurfaceMeshData, disc_surface, facing_discs, sphere_octant
+from meshes.membrane import SurfaceMeshData, disc_surface, extrude, facing_discs, smooth_rest_shape, sphere_octant
 from model.config.membrane import MUSCLE_FILES, MembraneRunConfig
 from model.domain.distribute import build_domain
 from model.errors import ConfigError, SolveFailed
 from model.experiments.membrane import cell_values, close_and_mesh, deformed_points
 from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_json_atomic
 from model.pipeline import Interrupted, StopFlag
-from model.problem.membrane import MembraneProblem, axis_orientation, balloon_pressure, hencky, radial_orientation
+from model.problem.membrane import (
+    MembraneProblem,
+    axis_orientation,
+    balloon_pressure,
+    hencky,
+    radial_orientation,
+    triangle_orientation,
+)
 from model.problem.membrane_contact import MembranePairContact, ObstacleContact, pair_contacts
 from model.solvers.membrane import InflationStep, InflationStopped, inflate, inflate_to_volume
 
 log = logging.getLogger(__name__)
 
 __all__ = ["run_membrane"]
+
+
+def _extrusion(config: MembraneRunConfig, law: MembraneLaw, flat: SurfaceMeshData | None, num_points: int,
+               comm: MPI.Comm) -> tuple[SurfaceMeshData | None, dict[str, Any]]:
+    """[extrusion]: the disc ``flat`` extruded by ``offset`` (the clamped rim stays), inflated without contact to
+    ``first_volume`` (inflate_to_volume, [inflation]'s dp and cutbacks), its free nodes smoothed and relaxed down to
+    ``rest_volume`` (meshes.membrane.smooth_rest_shape): the new rest shape (rank 0, else None) and summary.json's
+    "extrusion". SolveFailed when the first phase's Newton fails. Collective."""
+    e, m, inflation = config.extrusion, config.membrane, config.inflation
+    rim = np.unique(flat.facets[flat.facet_tags == flat.boundary_names["rim"]]) if comm.rank == 0 else None
+    extruded = extrude(flat, e.offset, rim) if comm.rank == 0 else None
+    first = MembraneProblem(build_domain(comm, extruded), law, axis_orientation(), m.border,
+                            quadrature_degree=m.quadrature_degree)
+    dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
+    try:
+        steps = inflate_to_volume(first, e.first_volume, dp, max_steps=inflation.max_steps,
+                                  cutbacks=inflation.cutbacks)
+    except RuntimeError as err:
+        raise SolveFailed(f"extrusion: the first inflation failed: {err}") from None
+    inflated = deformed_points(first, num_points)
+    rest, record = None, None
+    if comm.rank == 0:
+        smoothing = smooth_rest_shape(inflated, flat.cells, rim, e.rest_volume)
+        rest = SurfaceMeshData(smoothing.points, flat.cells, flat.cell_tags, flat.facets, flat.facet_tags,
+                               flat.region_names, flat.boundary_names)
+        record = {"offset": e.offset, "first_volume": e.first_volume, "rest_volume": e.rest_volume,
+                  "first_steps": [{"pressure": s.pressure, "volume": s.volume, "energy": s.energy,
+                                   "iterations": s.iterations} for s in steps],
+                  "smoothing_iterations": smoothing.iterations, "smoothed_volume": float(smoothing.volumes[-1])}
+    record = comm.bcast(record)
+    log.info("extrusion: V = %.6g at p = %.6g after %d steps; smoothed to V = %.6g in %d iterations",
+             steps[-1].volume, steps[-1].pressure, len(steps), record["smoothed_volume"],
+             record["smoothing_iterations"])
+    return rest, record
 
 
 def _ends(config: MembraneRunConfig, data: SurfaceMeshData) -> tuple[int, int]:
@@ -303,12 +344,17 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
     remove_earlier_run(out, comm)
     m, inflation = config.membrane, config.inflation
     law = membrane_law(m.law, **m.law_parameters)
-    data = _surface(config) if comm.rank == 0 else None
+    flat = data = _surface(config) if comm.rank == 0 else None
     num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
     if config.muscle is not None:
         _check_ends(config, data, comm)
+    orientation = _orientation(config)
+    extrusion = None
+    if config.extrusion is not None:  # the first phase: data becomes the smoothed rest shape (rank 0)
+        data, extrusion = _extrusion(config, law, flat, num_points, comm)
+        orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     domain = build_domain(comm, data)
-    problem = MembraneProblem(domain, law, _orientation(config), m.border, quadrature_degree=m.quadrature_degree)
+    problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree)
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]
@@ -316,7 +362,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
              for pair in pair_contacts(problem, spec.surface, spec.master, spec.penalty, name=spec.name,
                                        augmented=spec.augmented, two_pass=spec.two_pass)]
     contacts = [*contacts, *pairs]
-    if m.surface in ("disc", "facing_discs"):
+    if m.surface in ("disc", "facing_discs") and extrusion is None:
         bump = m.bump * m.radius
         side = (lambda x: _facing_side(x[2], m.gap)) if m.surface == "facing_discs" else (lambda x: 1.0)
         problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0],
@@ -335,6 +381,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,
     }
+    if extrusion is not None:
+        summary["extrusion"] = extrusion
     writer = _Writer(problem, data, num_points, out, config.output.xdmf, config.output.vtu)
 
     def save() -> None:
@@ -392,7 +440,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
             summary["steps"].append(summary["steps"].pop(accepted))
             writer.write(steps[-1].pressure)
         if config.muscle is not None:
-            summary["muscle"] = _muscle(config, problem, data, num_points, out, comm)
+            summary["muscle"] = _muscle(config, problem, flat, num_points, out, comm)
             writer.files += list(MUSCLE_FILES.values())
     except RuntimeError as err:
         error = str(err)
