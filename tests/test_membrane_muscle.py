@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import EXAMPLES
+from conftest import EXAMPLES, ROOT, environment, serial_only
 from mpi4py import MPI
 
 from model.config.membrane import load_membrane
@@ -189,3 +189,23 @@ def test_bad_extrusion_input_names_the_key(where: str, value: object, message: s
     with pytest.raises(ConfigError, match=message) as err:
         parse_membrane(raw, EXAMPLES)
     assert "\n" not in str(err.value)
+
+
+@serial_only
+def test_command_line_patch_then_muscle(tmp_path: Path) -> None:
+    """The two commands of the example's header: the membrane run names the written muscle.toml, which the command
+    line then runs as it is (its [output] dir: the membrane run's folder's contraction/)."""
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "patch"
+    first = subprocess.run([sys.executable, "-m", "model", "run", str(EXAMPLE), "--out", str(out)], cwd=ROOT,
+                           env=environment(), capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert f"run it with: python -m model run {out / 'muscle.toml'}" in first.stdout
+    second = subprocess.run([sys.executable, "-m", "model", "run", str(out / "muscle.toml")], cwd=ROOT,
+                            env=environment(), capture_output=True, text=True, timeout=300)
+    assert second.returncode == 0, second.stderr[-2000:]
+    summary = json.loads((out / "contraction" / "summary.json").read_text())
+    assert summary["status"] == "completed" and all(s["converged"] for s in summary["steps"])
