@@ -126,12 +126,18 @@ def _membrane(args: argparse.Namespace, overrides: dict) -> int:
 
     if args.restart is not None:
         raise ConfigError("--restart: a membrane run has no restart (run it again)")
-    summary = run_membrane(load_membrane(args.config, overrides), args.out)
+    config = load_membrane(args.config, overrides)
+    summary = run_membrane(config, args.out)
     if MPI.COMM_WORLD.rank == 0:
         last = summary["steps"][-1]
         print(f"done: membrane, {len(summary['steps'])} pressure steps, {summary['surface']['triangles']} "
               f"triangles, {summary['wall_time_s']:.1f} s; p {last['pressure']:.6g}, V {last['volume']:.6g}, "
               f"contact fraction {last['contact_fraction']:.4g}")
+        if "muscle" in summary:
+            muscle = summary["muscle"]
+            written = Path(args.out if args.out is not None else config.output.dir) / muscle["config"]
+            print(f"muscle: {muscle['tetrahedra']} tetrahedra, volume {muscle['volume']:.6g}; run it with: "
+                  f"python -m model run {written}")
     return 0
 
 

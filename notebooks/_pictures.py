@@ -12,8 +12,10 @@ A spec is a dict::
      "panels": [{"vtu": "file.vtu", "offset": [dx, dy, dz], "label": "t = 0.5", "deformed": true,
                  "cells": [optional list of cell indices to show], "reference": false}]}
 
-Every panel shows the mesh of its VTU (deformed by the point data ``u`` unless ``deformed`` is
-false) moved by ``offset``, coloured by the cell data ``scalars``; ``reference`` adds the
+Every panel shows the mesh of its VTU (tetrahedra, or else triangles; deformed by the point data ``u``
+unless ``deformed`` is false) moved by ``offset``, coloured by the cell data ``scalars`` (its first
+component) or in one ``color``, with ``opacity``; ``arrows``: the name of a cell vector field drawn as
+arrows of length ``arrow_scale`` at the centroids of the shown cells (or of ``arrow_cells``); ``reference`` adds the
 undeformed outline as a faint wireframe. A panel may override ``scalars``, ``cmap``, ``clim``,
 ``bar`` and ``bar_position`` ([x, y, width] as fractions of the window); each distinct scalar
 field gets one colour bar. ``texts`` is a list of [text, x, y] (fractions of the window).
@@ -121,24 +123,35 @@ def _main(spec_path: str) -> None:
                "width": width, "height": 0.06, "color": "black", "title_font_size": 18, "label_font_size": 16,
                "fmt": "%.3g"}
         data = meshio.read(panel["vtu"])
-        cells = data.cells_dict["tetra"]
+        kind, vtk_type = ("tetra", 10) if "tetra" in data.cells_dict else ("triangle", 5)
+        cells = data.cells_dict[kind]
         offset = np.asarray(panel.get("offset", (0.0, 0.0, 0.0)), dtype=float)
         points = np.asarray(data.points, dtype=float)
         current = points + (data.point_data["u"] if panel.get("deformed", True) else 0.0)
-        vtk_cells = np.hstack([np.full((len(cells), 1), 4), cells]).reshape(-1)
-        types = np.full(len(cells), 10, dtype=np.uint8)
+        vtk_cells = np.hstack([np.full((len(cells), 1), cells.shape[1]), cells]).reshape(-1)
+        types = np.full(len(cells), vtk_type, dtype=np.uint8)
         grid = pyvista.UnstructuredGrid(vtk_cells, types, current + offset)
-        grid.cell_data[name] = np.asarray(data.cell_data[name][0], dtype=float).reshape(len(cells), -1)[:, 0]
+        if panel.get("color") is None:
+            grid.cell_data[name] = np.asarray(data.cell_data[name][0], dtype=float).reshape(len(cells), -1)[:, 0]
+        if panel.get("arrows"):  # a cell vector field as arrows at the centroids (of the shown cells)
+            shown = np.asarray(panel.get("arrow_cells", panel.get("cells", np.arange(len(cells)))), dtype=np.int64)
+            centres = (current + offset)[cells[shown]].mean(axis=1)
+            vectors = np.asarray(data.cell_data[panel["arrows"]][0], dtype=float)[shown]
+            plotter.add_arrows(centres, vectors, mag=panel.get("arrow_scale", 0.1), color="black")
         if panel.get("cells") is not None:
             grid = grid.extract_cells(np.asarray(panel["cells"], dtype=np.int64))
         if panel.get("reference", False):
             reference = pyvista.UnstructuredGrid(vtk_cells, types, points + offset)
             plotter.add_mesh(reference.extract_feature_edges(45.0), color="grey", opacity=0.35, line_width=1)
-        plotter.add_mesh(grid, scalars=name, cmap=panel.get("cmap", spec.get("cmap", "viridis")),
-                         clim=panel.get("clim", spec.get("clim")), show_edges=spec.get("edges", True),
-                         edge_color="#404040", line_width=0.3, show_scalar_bar=name not in bars,
-                         scalar_bar_args=bar, smooth_shading=False)
-        bars.add(name)
+        if panel.get("color") is not None:
+            plotter.add_mesh(grid, color=panel["color"], show_edges=spec.get("edges", True), edge_color="#404040",
+                             line_width=0.3, opacity=panel.get("opacity", 1.0), smooth_shading=False)
+        else:
+            plotter.add_mesh(grid, scalars=name, cmap=panel.get("cmap", spec.get("cmap", "viridis")),
+                             clim=panel.get("clim", spec.get("clim")), show_edges=spec.get("edges", True),
+                             edge_color="#404040", line_width=0.3, show_scalar_bar=name not in bars,
+                             scalar_bar_args=bar, smooth_shading=False, opacity=panel.get("opacity", 1.0))
+            bars.add(name)
         if panel.get("label"):
             top = current + offset
             labels.append(panel["label"])

@@ -15,6 +15,11 @@ pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig):
                    (model.problem.membrane_contact.ObstacleContact)
     [[contact]]    membrane-membrane contact between two regions of the surface (facing_discs: lower, upper),
                    penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact)
+    [extrusion]    before [inflation] (surface = "disc"): the disc extruded, inflated without contact to a first
+                   volume and smoothed into a new rest shape (the thesis' two phases)
+    [muscle]       after the inflation (surface = "disc"): the patch closed with its flat base, filled with
+                   tetrahedra, given Laplace fibres and written as muscle.msh, fibres.npy, muscle.vtu and a solid
+                   run's configuration muscle.toml (the thesis' ch. 3.3.3; model.experiments.membrane)
     [output]       folder, XDMF and VTU of the deformed surface
     [units]        labels only
 
@@ -259,6 +264,64 @@ class ContactSection(Section):
         return self.name or f"{self.surface}-{self.master}"
 
 
+class ExtrusionSection(Section):
+    """[extrusion]: the thesis' first inflation phase and new rest shape (ch. 3.3.3; model.experiments.membrane
+    .inflate_extruded_patch) before [inflation]: the disc is extruded by ``offset`` along its normal (the clamped
+    rim stays), inflated without contact until ``first_volume``, and its free nodes smoothed and relaxed until the
+    enclosed volume falls to ``rest_volume`` (meshes.membrane.smooth_rest_shape); [inflation] (with the
+    [[obstacle]]s) then inflates the membrane on that rest shape from u = 0. Needs surface = "disc" with its rim
+    clamped."""
+
+    offset: Positive = key("the extrusion of the free nodes along the disc's normal", "m (length)")
+    first_volume: Positive = key("the first phase's stop: the enclosed volume of the inflated extrusion (no "
+                                 "contact)", "m^3 (volume)")
+    rest_volume: Positive = key("the new rest shape's enclosed volume: the smoothing stops when the volume falls "
+                                "to it", "m^3 (volume)")
+
+    @model_validator(mode="after")
+    def _volumes(self) -> ExtrusionSection:
+        if self.rest_volume >= self.first_volume:
+            fail(f"{self.rest_volume!r} must be below first_volume ({self.first_volume!r}): the smoothing shrinks "
+                 "the inflated shape", "rest_volume")
+        return self
+
+
+#: the boundaries of the closed patch's tetrahedral mesh (model.experiments.membrane): the inflated patch, the flat
+#: base, and the base's two ends where the fibres start and end
+MUSCLE_BOUNDARIES = ("patch", "base", "origin", "insertion")
+#: the files the [muscle] phase writes into the output folder
+MUSCLE_FILES = {"mesh": "muscle.msh", "fibres": "fibres.npy", "config": "muscle.toml", "vtu": "muscle.vtu"}
+
+
+class MuscleSection(Section):
+    """[muscle]: after the inflation, the thesis' closing (ch. 3.3.3): the disc patch closed with its flat rest
+    shape as the base and filled with tetrahedra (gmsh), the Laplace fibre field a0 = grad phi / |grad phi|
+    (phi = 0 on the base's end x < -end radius, ``origin``, and 1 on x > end radius, ``insertion``), written as
+    muscle.msh (physical groups: volume muscle; surfaces patch, base, origin, insertion), fibres.npy (a0 per
+    tetrahedron in the mesh file's cell order), muscle.vtu (both, to look at) and muscle.toml: a solid run of
+    the muscle (law muscle, isotropic StVK, the fibres from fibres.npy, the activation ramped from 0, the
+    ``fixed`` boundaries clamped) that ``python -m model run`` takes as it is. Needs surface = "disc" with its
+    rim clamped."""
+
+    tet_size: Positive | None = key("largest tetrahedron edge inside the muscle (default: membrane.size; the "
+                                    "surface mesh is kept)", "m (length)", default=None)
+    end: Annotated[Number, *interval(0.0, 1.0, "()")] = key(
+        "the fibre ends: the base triangles with centroid x < -end radius (origin) and x > end radius "
+        "(insertion)", "dimensionless", default=0.6)
+    young: Positive = key("the muscle's Young's modulus E (its isotropic StVK part)", "Pa (stress)")
+    nu: Annotated[Number, *interval(-1.0, 0.5, "()")] = key("the muscle's Poisson's ratio", "dimensionless",
+                                                            default=0.45)
+    sigma_max: Positive = key("the muscle's maximum active fibre stress", "Pa (stress)")
+    activation: Annotated[Number, *interval(0.0, 1.0, "(]")] = key(
+        "the activation reached at the end of the muscle run (ramped linearly from 0)", "dimensionless",
+        default=1.0)
+    steps: Annotated[Integer, Field(ge=1)] = key("load steps of the muscle run", default=4)
+    degree: Annotated[Integer, Field(ge=1, le=2)] = key("the muscle run's displacement degree (1 or 2)", default=1)
+    fixed: Annotated[tuple[Literal[MUSCLE_BOUNDARIES], ...], Field(min_length=1)] = key(
+        "the boundaries of the muscle run held in place: [\"origin\", \"insertion\"] an isometric contraction, "
+        "[\"origin\"] a free one (boundaries: patch, base, origin, insertion)", default=("origin", "insertion"))
+
+
 class MembraneOutput(Section):
     """[output]: the results folder (summary.json is always written) and the deformed surface's files."""
 
@@ -279,6 +342,10 @@ class MembraneRunConfig(Section):
     obstacles: tuple[ObstacleSection, ...] = key("rigid obstacles with a penalty", default=(), alias="obstacle")
     contacts: tuple[ContactSection, ...] = key("membrane-membrane contacts (two regions of the surface)",
                                                default=(), alias="contact")
+    extrusion: ExtrusionSection | None = key("before [inflation]: the disc extruded, inflated to a first volume "
+                                             "and smoothed into a new rest shape", default=None)
+    muscle: MuscleSection | None = key("after the inflation: the patch closed, tetrahedralised, given Laplace "
+                                       "fibres and written with a muscle run's configuration", default=None)
     output: MembraneOutput = key("results folder and files", default_factory=MembraneOutput)
     units: UnitsConfig = key("the system of units the numbers are in (labels only)", default_factory=UnitsConfig)
 
@@ -294,6 +361,22 @@ class MembraneRunConfig(Section):
                     known = f"regions: {', '.join(regions)}" if regions else \
                         "no regions: membrane-membrane contact needs surface = 'facing_discs'"
                     fail(f"{self.membrane.surface} has no region {name!r} ({known})", "contact", i, k)
+        if self.extrusion is not None:
+            if self.membrane.surface != "disc":
+                fail(f"needs surface = 'disc' (the extruded patch), not {self.membrane.surface!r}", "extrusion")
+            if self.membrane.border.get("rim") != (0, 1, 2):
+                fail("needs the rim clamped (membrane.fixed = { rim = [0, 1, 2] }): the extrusion keeps it",
+                     "extrusion")
+            if "bump" in self.membrane.model_fields_set:
+                fail("not with [extrusion] (the first phase starts from the extruded disc, the second from its rest "
+                     "shape)", "membrane", "bump")
+        if self.muscle is not None:
+            if self.membrane.surface != "disc":
+                fail(f"needs surface = 'disc' (a patch closed with its flat base), not {self.membrane.surface!r}",
+                     "muscle")
+            if self.membrane.border.get("rim") != (0, 1, 2):
+                fail("needs the rim clamped (membrane.fixed = { rim = [0, 1, 2] }): the base is closed on it",
+                     "muscle")
         return self
 
     @property
@@ -336,6 +419,6 @@ def load_membrane(path: str | Path, overrides: dict[str, Any] | None = None) -> 
     return parse_membrane(raw, path.parent)
 
 
-__all__ = ["ContactSection", "InflationSection", "LAW_PARAMETERS", "MembraneOutput", "MembraneRunConfig",
-           "MembraneSection", "ObstacleSection", "SURFACES", "SURFACE_KEYS", "is_membrane", "load_membrane",
-           "parse_membrane"]
+__all__ = ["ContactSection", "ExtrusionSection", "InflationSection", "LAW_PARAMETERS", "MUSCLE_BOUNDARIES",
+           "MUSCLE_FILES", "MembraneOutput", "MembraneRunConfig", "MembraneSection", "MuscleSection", "ObstacleSection",
+           "SURFACES", "SURFACE_KEYS", "is_membrane", "load_membrane", "parse_membrane"]

@@ -66,7 +66,8 @@ from model.solvers.membrane import InflationStep, inflate_to_volume
 
 log = logging.getLogger(__name__)
 
-__all__ = ["InflatedPatch", "deformed_points", "inflate_extruded_patch", "inflate_patch", "set_nodal_displacement"]
+__all__ = ["InflatedPatch", "cell_values", "close_and_mesh", "deformed_points", "inflate_extruded_patch",
+           "inflate_patch", "set_nodal_displacement"]
 
 
 @dataclass
@@ -107,6 +108,26 @@ def deformed_points(problem: MembraneProblem, num_points: int) -> np.ndarray | N
     return points
 
 
+def cell_values(fibres: FibreField) -> np.ndarray | None:
+    """The fibre directions of every cell of the mesh (num_cells_global, 3) in the input cell order (the order
+    of the MeshData the domain was built from: FibreField.from_cell_array's and a .npy fibre file's), on rank 0
+    (None elsewhere). Collective."""
+    msh = fibres.domain.mesh
+    owned = msh.topology.index_map(msh.topology.dim).size_local
+    original = np.asarray(msh.topology.original_cell_index, dtype=np.int64)[:owned]
+    dofs = compat.cell_dofs(fibres.function.function_space.dofmap).reshape(-1)[:owned]
+    values = fibres.function.x.array.reshape(-1, 3)[dofs]
+    gathered = msh.comm.gather((original, values), root=0)
+    if msh.comm.rank != 0:
+        return None
+    array = np.full((msh.topology.index_map(msh.topology.dim).size_global, 3), np.nan)
+    for index, value in gathered:
+        array[index] = value
+    if np.isnan(array).any():
+        raise RuntimeError("cell_values: some cells were not found on any rank")
+    return array
+
+
 def set_nodal_displacement(problem: MembraneProblem, values: np.ndarray) -> None:
     """u = values[input index] at every node (``values`` (num_points, 3), the same on every rank)."""
     msh = problem.domain.mesh
@@ -118,9 +139,11 @@ def set_nodal_displacement(problem: MembraneProblem, values: np.ndarray) -> None
     problem.u.x.scatter_forward()
 
 
-def _close_and_mesh(data: SurfaceMeshData | None, deformed: np.ndarray | None, radius: float, end: float,
-                    tet_size: float, comm: MPI.Comm) -> tuple[Domain, FibreField, MeshData | None]:
-    """Close the inflated patch with the flat ``data`` as base, tetrahedralise, Laplace fibres (steps 2-3)."""
+def close_and_mesh(data: SurfaceMeshData | None, deformed: np.ndarray | None, radius: float, end: float,
+                   tet_size: float, comm: MPI.Comm) -> tuple[Domain, FibreField, MeshData | None]:
+    """Close the inflated patch (``deformed``: X + u at the input points of the disc ``data``, rank 0) with the
+    flat ``data`` as base, tetrahedralise, Laplace fibres (steps 2-3 of the module docstring). Returns the
+    distributed tetrahedral domain, its fibre field and the MeshData (rank 0, else None). Collective."""
     mesh_data = None
     if comm.rank == 0:
         rim = np.unique(data.facets[data.facet_tags == data.boundary_names["rim"]])
@@ -150,7 +173,7 @@ def inflate_patch(law: MembraneLaw, target_volume: float, radius: float = 1.0, s
     steps = inflate_to_volume(problem, target_volume, dp)
     num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
     deformed = deformed_points(problem, num_points)
-    tet_domain, fibres, mesh_data = _close_and_mesh(data, deformed, radius, end, tet_size, comm)
+    tet_domain, fibres, mesh_data = close_and_mesh(data, deformed, radius, end, tet_size, comm)
     log.info("inflate_patch: V = %.6g at p = %.6g after %d steps", steps[-1].volume, steps[-1].pressure, len(steps))
     return InflatedPatch(problem, steps, tet_domain, fibres, mesh_data)
 
@@ -188,7 +211,7 @@ def inflate_extruded_patch(law: MembraneLaw, offset: float, first_volume: float,
     # phase 2: from the extruded positions, with contact, to the target volume or contact fraction
     steps = inflate_to_volume(problem, target_volume, dp, contact_fraction=contact_fraction)
     deformed = deformed_points(problem, num_points)
-    tet_domain, fibres, mesh_data = _close_and_mesh(data, deformed, radius, end, tet_size, comm)
+    tet_domain, fibres, mesh_data = close_and_mesh(data, deformed, radius, end, tet_size, comm)
     log.info("inflate_extruded_patch: V = %.6g, contact fraction %.4g at p = %.6g after %d + %d steps",
              steps[-1].volume, steps[-1].contact_fraction, steps[-1].pressure, len(first_steps), len(steps))
     return InflatedPatch(problem, steps, tet_domain, fibres, mesh_data, first_steps,
