@@ -130,7 +130,7 @@ BODY = {"surface": "upper_zmin", "master": "lower_zmax", "method": "penalty", "p
     ({**BODY, "sliding": "yes"}, "contact[0].sliding", "true or false"),
     ({**BODY, "sliding": True, "augmented": True}, "contact[0].augmented", "sliding"),
     ({**BODY, "quadrature_degree": 2}, "contact[0].quadrature_degree", "vertex"),
-    ({**BODY, "exact": True}, "contact[0].exact", "sliding = true"),
+    ({**BODY, "exact": True, "augmented": True}, "contact[0].augmented", "exact"),
     ({**BODY, "sliding": True, "exact": 1}, "contact[0].exact", "true or false"),
     ({"surface": "zmin", "obstacle": "plane", "point": [0, 0, 0], "normal": [0, 0, 1], "method": "penalty",
       "penalty": 1.0, "exact": True}, "contact[0].exact", "master"),

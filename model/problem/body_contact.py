@@ -170,11 +170,10 @@ class BodyContact:
         #: ties in the closest-triangle search to the smallest global triangle (default: exact sliding only; else
         #: the first of the nearest centroids, which on aligned meshes may differ between partitions)
         self.smallest_ties = self.exact if smallest_ties is None else bool(smallest_ties)
-        if self.exact and kind != "sliding":
-            raise ValueError("exact: the squared distance to the master surface is the sliding energy "
-                             "(kind = 'sliding')")
+        if self.exact and augmented:
+            raise ValueError("augmented: not with exact = true (exact contact is the penalty only)")
         if self.exact and smooth_normals:
-            raise ValueError("smooth_normals: the exact sliding energy (k/2) d^2 has no normal to smooth "
+            raise ValueError("smooth_normals: the exact energies (signed distance to T) have no normal to smooth "
                              "(exact = False for the interpolated normals)")
         self.smooth_normals = (kind == "sliding" and not self.exact) if smooth_normals is None else bool(smooth_normals)
         if problem.formulation != "displacement" or problem.degree != 1:
@@ -228,11 +227,15 @@ class BodyContact:
             self.slots = [fem.Function(V, name=f"z_vertex{i}") for i in range(3)]
             self.region = fem.Function(Q, name="closest_point_region")
             x = X + u
-            self.squared_distance = triangle_squared_distance(
-                x, *(Xi + zi for Xi, zi in zip(self.vertices, self.slots)), self.region)
-            # for the report: r = x_s - x*, the signed distance sign(n_T . r) |r|
-            r = x - self.X_star - self.z
-            self.gap = ufl.sign(ufl.dot(self.normal, r)) * ufl.sqrt(ufl.dot(r, r))
+            x1, x2, x3 = (Xi + zi for Xi, zi in zip(self.vertices, self.slots))
+            if kind == "contact":  # g = n . (x_s - x_1) / |n|, n = (x_2 - x_1) x (x_3 - x_1): T's plane, any region
+                n_T = ufl.cross(x2 - x1, x3 - x1)
+                self.plane_gap = ufl.dot(n_T, x - x1) / ufl.sqrt(ufl.dot(n_T, n_T))
+            else:
+                self.squared_distance = triangle_squared_distance(x, x1, x2, x3, self.region)
+                # for the report: r = x_s - x*, the signed distance sign(n_T . r) |r|
+                r = x - self.X_star - self.z
+                self.gap = ufl.sign(ufl.dot(self.normal, r)) * ufl.sqrt(ufl.dot(r, r))
         self.multiplier = fem.Function(Q, name="contact_pressure")
         block_of_q = np.asarray(to_v, dtype=np.int64) // self.bs
         q_of_block = np.full(len(self.reference), -1, dtype=np.int64)
@@ -245,7 +248,9 @@ class BodyContact:
         # surfaces that coincide at rest have gaps of +-2e-16 (round-off, machine dependent): count them touching,
         # so that the first tangent holds them (else Newton's first step lets the bodies pass through each other)
         touching = TOUCHING * self.size
-        if self.exact:
+        if self.exact and kind == "contact":  # the nodes not paired (region 0, a filler triangle) carry no energy
+            psi = ufl.conditional(ufl.gt(self.region, 0.5), penalty_energy(self.plane_gap, self.k, touching), 0.0)
+        elif self.exact:
             psi = 0.5 * self.k * self.squared_distance
         elif kind == "sliding":
             psi = sliding_energy(self.gap, self.k)
@@ -273,7 +278,8 @@ class BodyContact:
                 self._ufl[f"Kuz{i}"] = ufl.derivative(du, zi, w)
                 for j in range(i, 3):
                     self._ufl[f"Kzz{i}{j}"] = ufl.derivative(self._ufl[f"Rz{i}"], self.slots[j], w)
-            self._ufl.update({f"force{i}": -self.k * r[i] * ds for i in range(3)})
+            if kind == "sliding":  # (contact: p n, the gap n . (x_s - x*) and T's unit normal n as without exact)
+                self._ufl.update({f"force{i}": -self.k * r[i] * ds for i in range(3)})
             for key in ("Rz", "Kuz", "Kzz"):
                 del self._ufl[key]
         self._compiled: dict[str, Any] = {}
@@ -433,7 +439,8 @@ class BodyContact:
         fixed non-degenerate triangle (the unused branches of the distance stay finite). Collective."""
         slave, n = self.slave_blocks, len(self.slave_blocks)
         nonzero = bary != 0.0
-        order = np.argsort(~nonzero, axis=1, kind="stable")
+        order = np.argsort(~nonzero, axis=1, kind="stable") if self.kind == "sliding" else \
+            np.tile(np.arange(3), (n, 1))  # contact: T's own order, (x_2 - x_1) x (x_3 - x_1) outward
         rows = np.arange(n)[:, None]
         X_o, u_o, cols = X_tri[rows, order], (x_tri - X_tri)[rows, order], columns[rows, order]
         filler = self.size * np.eye(3)
@@ -586,7 +593,7 @@ class BodyContact:
         r = (self.reference[slave] + u[slave] - self.X_star.x.array.reshape(-1, self.bs)[slave]
              - self.z.x.array.reshape(-1, self.bs)[slave])
         normal = self.normal.x.array.reshape(-1, self.bs)[slave]
-        if self.exact:  # the signed distance: |x_s - x*| on the side of T's outward normal
+        if self.exact and self.kind == "sliding":  # the signed distance: |x_s - x*| on the side of T's normal
             return np.sign(np.einsum("ij,ij->i", normal, r)) * np.linalg.norm(r, axis=1)
         return np.einsum("ij,ij->i", normal, r)
 

@@ -60,7 +60,7 @@ class SelfContact(BodyContact):
 
     def __init__(self, problem: ElasticityProblem, surface: str, k: float, rings: int = 2,
                  reach: float | None = None, name: str | None = None, augmented: bool = False,
-                 tolerance: float = 1e-8, max_uzawa: int = 25) -> None:
+                 tolerance: float = 1e-8, max_uzawa: int = 25, exact: bool = False) -> None:
         if isinstance(rings, bool) or not isinstance(rings, int) or rings < 1:
             raise ValueError(f"rings: {rings!r} must be an integer >= 1")
         if reach is not None and not (np.isfinite(reach) and reach > 0):
@@ -70,7 +70,7 @@ class SelfContact(BodyContact):
         self.paired = np.zeros(0, dtype=bool)
         super().__init__(problem, surface, surface, k, kind="contact", name=name or f"{surface}-self",
                          augmented=augmented, tolerance=tolerance, max_uzawa=max_uzawa, smooth_normals=False,
-                         leave_shared=False)
+                         leave_shared=False, exact=exact)
         self._topology()
 
     def _topology(self) -> None:
@@ -157,7 +157,10 @@ class SelfContact(BodyContact):
     def potential_reason(self) -> str | None:
         """Full Newton steps for a self-contact pair: backtracking on the total potential stalled on the slotted block
         (|R| stuck at 1e-5 |R_0|, SNES stopped by snes_stol) with the tangent's lagged pairing (module docstring);
-        full steps converge (tests/test_self_contact.py)."""
+        full steps converge (tests/test_self_contact.py). With ``exact`` the residual is the derivative of the energy
+        (BodyContact, "Exact contact"): None, backtracking on the total potential."""
+        if self.exact:
+            return None
         return (f"the self-contact {self.name}: backtracking on the total potential stalls with the lagged "
                 "pairing in the tangent (full Newton steps)")
 
