@@ -4,7 +4,8 @@ The thesis computes the fat layer's self-collisions in the elbow's folding regio
 bulge). Here a named surface S of the mesh (a body's whole boundary, or a part of it) is both the slave and the
 master of a model.problem.body_contact.BodyContact of kind "contact": frictionless penalty (optionally the
 augmented Lagrangian, Uzawa updates of the nodal pressure), energy, gap, chain rule R = dPi_c/du + Pi^T dPi_c/dz and
-UFL-derived tangent exactly as there (only the closest-point search differs). Every node s of S is a slave; its
+UFL-derived tangent exactly as there (only the closest-point search differs; ``exact=True``: BodyContact's exact
+contact, every derivative by UFL, a consistent potential and backtracking on it). Every node s of S is a slave; its
 master is the closest point x* of the deformed S among the triangles T that pass the exclusion rule:
 
     (1) neighbourhood: T has no vertex within ``rings`` - 1 edges of s along S's edges (rings = 1: T does not
@@ -28,7 +29,8 @@ through: choose k so that the penetration p/k stays well below it). P1 displacem
 
 Measured on the slotted block (tests/test_self_contact.py, docs/layers.md): the same answer as the two-surface
 contact of the slot's faces both ways (difference 0), Newton with full steps converging linearly (rate ~0.36: the
-BodyContact tangent lags the pairing, T, b_j and n_T; J d is 0.3 % off central differences of R there).
+BodyContact tangent lags the pairing, T, b_j and n_T; J d is 0.3 % off central differences of R there); with
+``exact=True`` quadratic (the last step 19, 2.9e-2, 1.4e-6, 9.8e-12: 4 iterations against 21; 28 in all against 42).
 The augmented Lagrangian gives the pairs' answer too but its Uzawa updates stall near 1e-7 x size (two passes: both
 sides' multipliers share the load in no unique way).
 """
