@@ -189,7 +189,7 @@ class BodyContact:
             raise ValueError(f"max_uzawa: {max_uzawa!r} must be an integer >= 1")
         self.augmented, self.tolerance, self.max_uzawa = augmented, float(tolerance), max_uzawa
         self.exact = bool(exact)
-        #: ties in the closest-triangle search to the smallest global triangle (default: exact sliding only; else
+        #: ties in the closest-triangle search to the smallest global triangle (default: with exact only; else
         #: the first of the nearest centroids, which on aligned meshes may differ between partitions)
         self.smallest_ties = self.exact if smallest_ties is None else bool(smallest_ties)
         if self.exact and augmented:
