@@ -74,12 +74,17 @@ def test_example_against_p_a_and_one_body(tmp_path_factory, reference) -> None:
     assert last["interface"][2] == pytest.approx(last["top"][2] / 2, rel=1e-8)  # homogeneous: half the top's
 
 
-def test_penalty_alone_is_off_by_p_over_k(tmp_path_factory, reference) -> None:
-    """augmented = false: every slave node penetrates by p/k, the top lies p/k lower than the one body's."""
+@pytest.mark.parametrize("exact", [False, True])
+def test_penalty_alone_is_off_by_p_over_k(tmp_path_factory, reference, exact: bool) -> None:
+    """augmented = false: every slave node penetrates by p/k, the top lies p/k lower than the one body's; the same
+    with exact = true (exact contact: on the flat faces the plane gap is the default's), bt on the total potential."""
     k = 1.0e7
     raw = bodies(augmented=False)
     del raw["contact"][0]["tolerance"]
-    last = run_raw(raw, out_dir(tmp_path_factory, "penalty"))["steps"][-1]
+    raw["contact"][0]["exact"] = exact
+    summary = run_raw(raw, out_dir(tmp_path_factory, f"penalty{int(exact)}"))
+    assert summary["solver"]["line_search"] == {"type": "bt", "merit": "total_potential"}
+    last = summary["steps"][-1]
     pair = last["contact_pairs"]["upper_zmin-lower_zmax"]
     assert pair["max_penetration"] == pytest.approx(P / k, rel=1e-8)
     assert pair["normal_force"] == pytest.approx(P, rel=1e-10)
@@ -130,7 +135,7 @@ BODY = {"surface": "upper_zmin", "master": "lower_zmax", "method": "penalty", "p
     ({**BODY, "sliding": "yes"}, "contact[0].sliding", "true or false"),
     ({**BODY, "sliding": True, "augmented": True}, "contact[0].augmented", "sliding"),
     ({**BODY, "quadrature_degree": 2}, "contact[0].quadrature_degree", "vertex"),
-    ({**BODY, "exact": True}, "contact[0].exact", "sliding = true"),
+    ({**BODY, "exact": True, "augmented": True}, "contact[0].augmented", "exact"),
     ({**BODY, "sliding": True, "exact": 1}, "contact[0].exact", "true or false"),
     ({"surface": "zmin", "obstacle": "plane", "point": [0, 0, 0], "normal": [0, 0, 1], "method": "penalty",
       "penalty": 1.0, "exact": True}, "contact[0].exact", "master"),

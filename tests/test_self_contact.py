@@ -186,6 +186,10 @@ def test_config_self_contact_keys() -> None:
             parse_contact(raw, "contact")
     with pytest.raises(ConfigError, match="contact.rings"):
         parse_contact({"surface": "slot", "master": "x", "method": "penalty", "penalty": 1e6, "rings": 2}, "contact")
+    exact = {"surface": "slot", "self_contact": True, "method": "penalty", "penalty": 1e6, "exact": True}
+    assert parse_contact(exact, "contact").exact
+    with pytest.raises(ConfigError, match="contact.augmented: not with exact"):
+        parse_contact({**exact, "augmented": True}, "contact")
 
 
 def test_config_self_contact_needs_p1_and_a_known_surface() -> None:
@@ -208,3 +212,29 @@ def test_config_self_contact_needs_p1_and_a_known_surface() -> None:
     with pytest.raises(ConfigError, match="contact.surface"):
         build_contact(problem, spec.model_copy(update={"surface": "nowhere"}))
     assert isinstance(build_contact(problem, spec), SelfContact)
+
+
+def test_exact_self_contact_converges_quadratically() -> None:
+    """exact = True (BodyContact's exact contact: the signed distance to the paired triangle's plane, every derivative
+    by UFL): a consistent potential, so backtracking on it; the closed slot's last load step converges quadratically
+    (measured residuals 19, 2.9e-2, 1.4e-6, 9.8e-12: 4 iterations; the default's lagged pairing: 21, a rate of 0.36)
+    to the default's answer within the penalty's scale (measured 8.2e-5 against a penetration of 5.7e-4: the default's
+    R differs where the closest point is on an edge or vertex), 42 Newton iterations in all against 28."""
+    answers, reports = [], []
+    for exact in (False, True):
+        problem = slotted(0.1)
+        pair = SelfContact(problem, "slot", 1e6, exact=exact)
+        assert (problem.potential_reason() is None) == exact
+        solver = NewtonSolver(problem, options=OPTIONS if not exact else {"snes_rtol": 1e-11, "snes_atol": 1e-10})
+        assert solver.line_search["type"] == ("bt" if exact else "basic")
+        records: list = []
+        assert step_loads(solver, 4, on_step=records.append).completed
+        solver.destroy()
+        answers.append(gathered(problem))
+        reports.append(pair.report())
+    assert records[-1].result.iterations <= 5, [r.result.iterations for r in records]
+    default, exact = reports
+    assert exact["active_points"] == default["active_points"] > 20
+    assert exact["max_penetration"] == pytest.approx(default["max_penetration"], rel=1e-2)
+    assert exact["normal_force"] == pytest.approx(default["normal_force"], rel=1e-3)
+    assert np.abs(answers[1] - answers[0]).max() < 0.2 * default["max_penetration"]

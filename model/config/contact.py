@@ -35,7 +35,9 @@ def _contact_schema(schema: dict[str, Any]) -> None:
     schema.setdefault("allOf", []).append(
         {"if": {"required": ["master"]},
          "then": {"properties": {k: False for k in ("obstacle", "bone", *ALL_SHAPE_KEYS)}},
-         "else": {"properties": {"sliding": False, "exact": False}}})
+         "else": {"properties": {"sliding": False}}})
+    schema["allOf"].append({"if": {"not": {"anyOf": [{"required": ["master"]}, {"required": ["self_contact"]}]}},
+                            "then": {"properties": {"exact": False}}})
 
 
 class ContactSpec(Variant):
@@ -56,8 +58,10 @@ class ContactSpec(Variant):
                               default=None)
     sliding: Flag = key("master only: the surface stays on master and slides along it (zero-length normal "
                         "springs, (k/2) g^2; false: contact, (k/2) min(g, 0)^2)", default=False)
-    exact: Flag = key("sliding only: the energy (k/2) d^2, d the distance to master's deformed triangles, with its "
-                      "exact derivatives (a consistent potential: backtracking on it; docs/layers.md)", default=False)
+    exact: Flag = key("master or self_contact only: every derivative of the energy taken by UFL, the paired "
+                      "triangle's rotation included (a consistent potential: backtracking on it; docs/layers.md): "
+                      "sliding (k/2) d^2, d the distance to master's deformed triangles; contact (k/2) min(g, 0)^2, "
+                      "g the signed distance to the paired triangle's plane (not with augmented)", default=False)
     self_contact: Flag = key("the surface against itself (self-contact of one body: its nodes against its own deformed "
                              "triangles outside their neighbourhood, facing them; no master, obstacle or bone; "
                              "docs/layers.md)", default=False)
@@ -96,9 +100,11 @@ class ContactSpec(Variant):
             if data.get("self_contact") is True:
                 if data.get("method", "penalty") != "penalty":
                     fail(f"self-contact needs method = \"penalty\", not {data['method']!r}", "method")
-                for k in ("master", "sliding", "exact", "bone", "obstacle", *ALL_SHAPE_KEYS):
+                for k in ("master", "sliding", "bone", "obstacle", *ALL_SHAPE_KEYS):
                     if k in data:
                         fail("not with self_contact = true (the surface is its own master)", k)
+                if data.get("exact") is True and data.get("augmented") is True:
+                    fail("not with exact = true (exact contact is the penalty only)", "augmented")
                 if data.get("quadrature_degree", "vertex") != "vertex":
                     fail("self-contact always uses the nodal rule (\"vertex\"): leave it out", "quadrature_degree")
                 return data
@@ -115,7 +121,8 @@ class ContactSpec(Variant):
             else:
                 for k in ("sliding", "exact"):
                     if k in data:
-                        fail("only with master = \"<boundary of another body>\" (sliding between bodies)", k)
+                        fail("only with master = \"<boundary of another body>\" or self_contact = true (between "
+                             "deformable surfaces)", k)
                 if "obstacle" not in data and "bone" not in data:
                     fail("missing (give obstacle = \"plane\" | \"sphere\" | \"capsule\", a bone, or master = a "
                          "boundary of another body)", "obstacle")
@@ -125,8 +132,8 @@ class ContactSpec(Variant):
     def _between_bodies(self) -> ContactSpec:
         if self.master is None:
             return self
-        if self.exact and not self.sliding:
-            fail("only with sliding = true (the exact squared distance is a sliding energy)", "exact")
+        if self.exact and self.augmented:
+            fail("not with exact = true (exact contact is the penalty only)", "augmented")
         if self.master == self.surface:
             fail(f"must differ from surface ({self.surface!r}): contact between two bodies' boundaries", "master")
         if self.sliding and self.augmented:

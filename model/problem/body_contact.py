@@ -32,7 +32,9 @@ What is lagged: the pairing (T, b_j) and the normal n are found again from the d
 residual and Jacobian evaluation (every Newton iteration) and held fixed in the derivatives, whose exact
 linearisation would add terms proportional to g (the normal's rotation) and to the tangential slip of x*
 (zero at a closest point where T is flat). Newton therefore converges quadratically once the pairing stops
-changing, and superlinearly on curved surfaces (measured in tests/test_body_contact.py).
+changing, and superlinearly on curved surfaces (measured in tests/test_body_contact.py); where g != 0 and T turns
+(the blocks from a distorted start, the slotted block's self-contact) linearly, at rates 0.03 and 0.36 (exact contact,
+below, takes the rotation in and converges quadratically there).
 
 Sliding with smoothed normals has no consistent potential (R = k g N is not d/du of (k/2) g^2: the lagged slip of
 x* changes g by the tangential part of N), so such a pair gives a ``potential_reason`` and the Newton solver takes
@@ -67,6 +69,25 @@ than the interpolated normals at 10 degrees of flexion, but 24 of 30 degrees rea
 "Contact and sliding between deformable bodies"). Ties in the closest-triangle search go to the smallest global
 triangle (the same pairing on any partition); the layered arm's exact answer still differs by
 1-3 % between 1 and 2 ranks (several equilibria within the tolerance at those kinks).
+
+Exact contact (``exact=True``, kind "contact"; opt-in, the penalty only, not ``augmented``): the gap is the signed
+distance to the paired triangle's plane, in every region of the closest point,
+
+    g = n . (x_s - x_1) / |n|,   n = (x_2 - x_1) x (x_3 - x_1),   x_i = X_i + z_i (T's own, outward order),
+
+Pi_c = int_slave (k/2) min(g, 0)^2 dA (forms.obstacles.penalty_energy, the same touching tolerance), with the vertex
+slots z_i and P_i of exact sliding and every block of R and K from UFL: only T is lagged, the normal's rotation is in
+R and K. At a pairing its value is the default's gap (n_T . (x_s - x*), x* in T's plane), so where x* is inside T
+(the face region) the answers agree; in an edge or vertex region the default's R (the b_j of x* on the edge, not of
+the projection on T's plane) is not the derivative of its own energy and the answers differ at the penalty's scale
+(the slot: 8.2e-5 against a penetration of 5.7e-4). The signed distance itself, +-sqrt(d^2) in the edge and vertex
+regions with the side of T's normal, jumps where that side flips at d > 0 (a node beside the master surface's open
+edge, in T's plane): Newton stalled there, so the plane is used. Tested: R . d and J d against central differences
+(O(h^2)) with every slave node pressed in vertex, edge and face regions, Newton quadratic on the pressed blocks and
+the slotted block's self-contact (tests/test_body_contact.py, tests/test_self_contact.py). The price: the
+rotation's term k g (d2 g/du2) makes the tangent indefinite where nodes start deep (k |g| comparable to the
+stiffness): from the blocks sunk 1e-3 into each other (k = 1e7, E = 1e4) Newton diverges where the default
+converges in 10 iterations (3e-4: 15 iterations, 1e-4: 9, the default 10).
 
 P1 displacement formulation only (the nodal rule); the master surface's triangles are gathered on every rank
 (each rank pairs its own slave nodes), so the search is MPI-correct with the same result on any number of ranks.
@@ -143,8 +164,9 @@ class BodyContact:
     """Penalty contact (``kind="contact"``) or sliding (``"sliding"``) of ``slave`` against ``master``, two named
     surfaces of the problem's mesh (module docstring). Adds its energy to the problem and registers itself as a
     coupling (ElasticityProblem.couplings: the Newton solver adds Pi^T R_z and the coupling matrices).
-    ``exact`` (sliding only): the energy (k/2) d^2, d the distance to the faceted master surface, with its exact
-    derivatives (module docstring, "Exact sliding"); otherwise the gap along the interpolated normals.
+    ``exact``: every derivative by UFL with only the paired triangle lagged (module docstring): sliding (k/2) d^2, d
+    the distance to the faceted master surface ("Exact sliding"), contact (k/2) min(g, 0)^2, g the signed distance
+    to the paired triangle's plane ("Exact contact"; not ``augmented``); otherwise the lagged normal.
     ``smallest_ties``: equal distances (1e-14 relative) to the smallest global triangle (the same pairing on any
     partition; default: with ``exact`` only)."""
 
@@ -167,14 +189,13 @@ class BodyContact:
             raise ValueError(f"max_uzawa: {max_uzawa!r} must be an integer >= 1")
         self.augmented, self.tolerance, self.max_uzawa = augmented, float(tolerance), max_uzawa
         self.exact = bool(exact)
-        #: ties in the closest-triangle search to the smallest global triangle (default: exact sliding only; else
+        #: ties in the closest-triangle search to the smallest global triangle (default: with exact only; else
         #: the first of the nearest centroids, which on aligned meshes may differ between partitions)
         self.smallest_ties = self.exact if smallest_ties is None else bool(smallest_ties)
-        if self.exact and kind != "sliding":
-            raise ValueError("exact: the squared distance to the master surface is the sliding energy "
-                             "(kind = 'sliding')")
+        if self.exact and augmented:
+            raise ValueError("augmented: not with exact = true (exact contact is the penalty only)")
         if self.exact and smooth_normals:
-            raise ValueError("smooth_normals: the exact sliding energy (k/2) d^2 has no normal to smooth "
+            raise ValueError("smooth_normals: the exact energies (signed distance to T) have no normal to smooth "
                              "(exact = False for the interpolated normals)")
         self.smooth_normals = (kind == "sliding" and not self.exact) if smooth_normals is None else bool(smooth_normals)
         if problem.formulation != "displacement" or problem.degree != 1:
@@ -228,11 +249,15 @@ class BodyContact:
             self.slots = [fem.Function(V, name=f"z_vertex{i}") for i in range(3)]
             self.region = fem.Function(Q, name="closest_point_region")
             x = X + u
-            self.squared_distance = triangle_squared_distance(
-                x, *(Xi + zi for Xi, zi in zip(self.vertices, self.slots)), self.region)
-            # for the report: r = x_s - x*, the signed distance sign(n_T . r) |r|
-            r = x - self.X_star - self.z
-            self.gap = ufl.sign(ufl.dot(self.normal, r)) * ufl.sqrt(ufl.dot(r, r))
+            x1, x2, x3 = (Xi + zi for Xi, zi in zip(self.vertices, self.slots))
+            if kind == "contact":  # g = n . (x_s - x_1) / |n|, n = (x_2 - x_1) x (x_3 - x_1): T's plane, any region
+                n_T = ufl.cross(x2 - x1, x3 - x1)
+                self.plane_gap = ufl.dot(n_T, x - x1) / ufl.sqrt(ufl.dot(n_T, n_T))
+            else:
+                self.squared_distance = triangle_squared_distance(x, x1, x2, x3, self.region)
+                # for the report: r = x_s - x*, the signed distance sign(n_T . r) |r|
+                r = x - self.X_star - self.z
+                self.gap = ufl.sign(ufl.dot(self.normal, r)) * ufl.sqrt(ufl.dot(r, r))
         self.multiplier = fem.Function(Q, name="contact_pressure")
         block_of_q = np.asarray(to_v, dtype=np.int64) // self.bs
         q_of_block = np.full(len(self.reference), -1, dtype=np.int64)
@@ -245,7 +270,9 @@ class BodyContact:
         # surfaces that coincide at rest have gaps of +-2e-16 (round-off, machine dependent): count them touching,
         # so that the first tangent holds them (else Newton's first step lets the bodies pass through each other)
         touching = TOUCHING * self.size
-        if self.exact:
+        if self.exact and kind == "contact":  # the nodes not paired (region 0, a filler triangle) carry no energy
+            psi = ufl.conditional(ufl.gt(self.region, 0.5), penalty_energy(self.plane_gap, self.k, touching), 0.0)
+        elif self.exact:
             psi = 0.5 * self.k * self.squared_distance
         elif kind == "sliding":
             psi = sliding_energy(self.gap, self.k)
@@ -273,7 +300,8 @@ class BodyContact:
                 self._ufl[f"Kuz{i}"] = ufl.derivative(du, zi, w)
                 for j in range(i, 3):
                     self._ufl[f"Kzz{i}{j}"] = ufl.derivative(self._ufl[f"Rz{i}"], self.slots[j], w)
-            self._ufl.update({f"force{i}": -self.k * r[i] * ds for i in range(3)})
+            if kind == "sliding":  # (contact: p n, the gap n . (x_s - x*) and T's unit normal n as without exact)
+                self._ufl.update({f"force{i}": -self.k * r[i] * ds for i in range(3)})
             for key in ("Rz", "Kuz", "Kzz"):
                 del self._ufl[key]
         self._compiled: dict[str, Any] = {}
@@ -433,7 +461,8 @@ class BodyContact:
         fixed non-degenerate triangle (the unused branches of the distance stay finite). Collective."""
         slave, n = self.slave_blocks, len(self.slave_blocks)
         nonzero = bary != 0.0
-        order = np.argsort(~nonzero, axis=1, kind="stable")
+        order = np.argsort(~nonzero, axis=1, kind="stable") if self.kind == "sliding" else \
+            np.tile(np.arange(3), (n, 1))  # contact: T's own order, (x_2 - x_1) x (x_3 - x_1) outward
         rows = np.arange(n)[:, None]
         X_o, u_o, cols = X_tri[rows, order], (x_tri - X_tri)[rows, order], columns[rows, order]
         filler = self.size * np.eye(3)
@@ -586,7 +615,7 @@ class BodyContact:
         r = (self.reference[slave] + u[slave] - self.X_star.x.array.reshape(-1, self.bs)[slave]
              - self.z.x.array.reshape(-1, self.bs)[slave])
         normal = self.normal.x.array.reshape(-1, self.bs)[slave]
-        if self.exact:  # the signed distance: |x_s - x*| on the side of T's outward normal
+        if self.exact and self.kind == "sliding":  # the signed distance: |x_s - x*| on the side of T's normal
             return np.sign(np.einsum("ij,ij->i", normal, r)) * np.linalg.norm(r, axis=1)
         return np.einsum("ij,ij->i", normal, r)
 

@@ -338,7 +338,8 @@ def _self_contact(problem: ElasticityProblem, spec: ContactSpec, key: str) -> Bo
                           f"formulation = \"displacement\")")
     try:
         return SelfContact(problem, spec.surface, spec.penalty, rings=spec.rings or 2, reach=spec.reach,
-                           augmented=spec.augmented, tolerance=spec.tolerance, max_uzawa=spec.max_uzawa)
+                           augmented=spec.augmented, tolerance=spec.tolerance, max_uzawa=spec.max_uzawa,
+                           exact=spec.exact)
     except ValueError as err:
         raise ConfigError(f"{key}.{err}") from None
 
