@@ -194,16 +194,17 @@ def test_bad_extrusion_input_names_the_key(where: str, value: object, message: s
 @serial_only
 def test_command_line_patch_then_muscle(tmp_path: Path) -> None:
     """The two commands of the example's header: the membrane run names the written muscle.toml, which the command
-    line then runs as it is (its [output] dir: the membrane run's folder's contraction/)."""
+    line then runs as it is (its [output] dir: the membrane run's folder's contraction/, an absolute path: the
+    membrane run is given a relative --out, the muscle run starts in another working directory)."""
     import json
     import subprocess
     import sys
 
     out = tmp_path / "patch"
-    first = subprocess.run([sys.executable, "-m", "model", "run", str(EXAMPLE), "--out", str(out)], cwd=ROOT,
+    first = subprocess.run([sys.executable, "-m", "model", "run", str(EXAMPLE), "--out", "patch"], cwd=tmp_path,
                            env=environment(), capture_output=True, text=True, timeout=300)
     assert first.returncode == 0, first.stderr[-2000:]
-    assert f"run it with: python -m model run {out / 'muscle.toml'}" in first.stdout
+    assert f"run it with: python -m model run {Path('patch') / 'muscle.toml'}" in first.stdout, first.stdout
     second = subprocess.run([sys.executable, "-m", "model", "run", str(out / "muscle.toml")], cwd=ROOT,
                             env=environment(), capture_output=True, text=True, timeout=300)
     assert second.returncode == 0, second.stderr[-2000:]

@@ -121,7 +121,8 @@ def _check_ends(config: MembraneRunConfig, data: SurfaceMeshData | None, comm: M
 def muscle_document(config: MembraneRunConfig, out: Path) -> str:
     """muscle.toml's text: a solid run (model.config.RunConfig) of the closed patch's tetrahedra (muscle.msh)
     with the Laplace fibres of fibres.npy, the activation ramped from 0 to ``activation`` in ``steps`` load steps
-    and the ``fixed`` boundaries clamped; its results go to OUT/contraction (the command line's --out wins)."""
+    and the ``fixed`` boundaries clamped; its results go to OUT/contraction, an absolute path, so that the file
+    runs from any working directory (the command line's --out wins)."""
     m = config.muscle
     lines = [
         "# The muscle of a membrane run ([muscle], model.experiments.membrane_run; docs/membranes.md): the inflated",
@@ -151,7 +152,7 @@ def muscle_document(config: MembraneRunConfig, out: Path) -> str:
     for name in m.fixed:
         lines += ["", "[[boundary]]", f"on = {json.dumps(name)}", 'type = "displacement"', "value = [0.0, 0.0, 0.0]"]
     lines += ["", "[loading]", f"steps = {m.steps}", "", "[output]",
-              f"dir = {json.dumps((out / 'contraction').as_posix())}", ""]
+              f"dir = {json.dumps((out / 'contraction').resolve().as_posix())}", ""]
     return "\n".join(lines)
 
 
