@@ -1,7 +1,7 @@
 """A pressurised membrane on a triangle surface mesh in 3D (tdim 2, gdim 3), and its closed-form references.
 
     problem = MembraneProblem(domain, law, orientation=radial_orientation(), fixed={"rim": (0, 1, 2)})
-    problem.pressure.value = 0.01      # then model.solvers.membrane.inflate / solve_membrane
+    problem.set_pressure(0.01)         # then model.solvers.membrane.inflate / solve_membrane
 
 Unknown: the displacement u (P1, 3 components) of the surface; deformed position x = X + u. Energy
 
@@ -26,6 +26,19 @@ References (``balloon_pressure``, ``hencky``):
   for nu = 0.3; its sum is w0 = 0.6534 a (p a / E h)^(1/3), what the shooting gives. The often quoted
   0.662 (Timoshenko & Woinowsky-Krieger, Theory of Plates and Shells, 1959) carries Hencky's original higher
   coefficients, corrected later (see Fichter 1997, NASA TP-3658).
+
+Per-node pressure frozen on contact (``freeze_on_contact=True``; the thesis, ch. 3.3.3: "Pressure per-vertex is
+increased linearly over time. When a node collides, its pressure value is frozen to its last value, in order
+to improve the solver's stability"): the pressure is a P1 Function p_h (``nodal_pressure``) and the load is
+written as a follower-pressure residual, not as -p V(x):
+
+    R(u; v) = d/du [int w(F) dA + Pi_contacts] [v] - int_S0 p_h (F t1 x F t2) . v dA,
+
+(F t1 x F t2) dA = n da the deformed area vector; UFL derives the Jacobian of R (not symmetric once p_h varies).
+With p_h = p uniform it is the residual of Pi above: on a surface closed by clamped rims the two agree to
+round-off (the P1 volume gradient of a closed ring of triangles is the nodal sum of p A n / 3). ``set_pressure``
+sets p on the free nodes, ``freeze`` fixes the given nodes at their current value (model.solvers.membrane
+.inflate freezes the nodes that touch after each step's equilibrium).
 """
 
 from __future__ import annotations
@@ -98,11 +111,14 @@ class MembraneProblem:
 
     Attributes: ``u`` (displacement), ``pressure`` (fem.Constant), ``energy`` (the UFL form Pi), ``residual``
     (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0), ``contacts`` (the contact
-    terms added to Pi, model.problem.membrane_contact).
+    terms added to Pi, model.problem.membrane_contact). ``freeze_on_contact``: the pressure per node
+    (``nodal_pressure``, a scalar P1 Function; ``frozen``, a bool per owned node; module docstring), ``energy``
+    then without the pressure term.
     """
 
     def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
-                 fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2) -> None:
+                 fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2,
+                 freeze_on_contact: bool = False) -> None:
         msh = domain.mesh
         if msh.topology.dim != 2 or msh.geometry.dim != 3:
             raise ValueError(f"membrane: needs a surface mesh (tdim 2, gdim 3), got tdim {msh.topology.dim}, "
@@ -121,8 +137,23 @@ class MembraneProblem:
         self.F = membrane_deformation_gradient(self.u, self.frame)
         self.stretch_energy = law.energy(self.F) * self.dA
         self.volume_form = enclosed_volume(self.u, self.frame, X) * self.dA
-        self.energy = self.stretch_energy - self.pressure * self.volume_form
-        self.residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
+        self.nodal_pressure: fem.Function | None = None
+        self._load: ufl.Form | None = None
+        if freeze_on_contact:
+            # the pressure per node: a scalar P1 Function, the dof of each displacement block from the collapsed
+            # first component (as the contact multipliers, model.problem.membrane_contact)
+            Q, to_v = self.V.sub(0).collapse()
+            self.nodal_pressure = fem.Function(Q, name="nodal_pressure")
+            q_of_block = np.full(len(self.u.x.array) // 3, -1, dtype=np.int64)
+            q_of_block[np.asarray(to_v, dtype=np.int64) // 3] = np.arange(len(to_v))
+            self._q = q_of_block[: self.V.dofmap.index_map.size_local]
+            self.frozen = np.zeros(len(self._q), dtype=bool)
+            area_vector = ufl.cross(self.F[:, 0], self.F[:, 1])  # n da / dA
+            self._load = self.nodal_pressure * ufl.dot(area_vector, ufl.TestFunction(self.V)) * self.dA
+            self.energy = self.stretch_energy
+        else:
+            self.energy = self.stretch_energy - self.pressure * self.volume_form
+        self.residual = self._residual()
         self.bcs = []
         for name, components in (fixed or {}).items():
             error = domain.boundary_error(name)
@@ -141,7 +172,39 @@ class MembraneProblem:
     def add_energy(self, energy: ufl.Form) -> None:
         """Pi <- Pi + energy (e.g. a contact penalty), and the residual again; before a solver is made."""
         self.energy = self.energy + energy
-        self.residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
+        self.residual = self._residual()
+
+    def _residual(self) -> ufl.Form:
+        """dPi/du, minus the per-node follower load with ``freeze_on_contact``."""
+        residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
+        return residual if self._load is None else residual - self._load
+
+    def set_pressure(self, value: float) -> None:
+        """p = ``value``: the constant, and with ``freeze_on_contact`` every node not frozen (ghosts updated)."""
+        self.pressure.value = value
+        if self.nodal_pressure is not None:
+            self.nodal_pressure.x.array[self._q[~self.frozen]] = value
+            self.nodal_pressure.x.scatter_forward()
+
+    def freeze(self, nodes: np.ndarray) -> int:
+        """Freeze the owned ``nodes`` (a bool per owned node) at their current pressure (frozen ones stay);
+        the number of frozen nodes over all ranks. Collective."""
+        if self.nodal_pressure is None:
+            raise ValueError("membrane: freeze needs a problem made with freeze_on_contact=True")
+        self.frozen |= np.asarray(nodes, dtype=bool)
+        return self.frozen_count()
+
+    def frozen_count(self) -> int:
+        """The number of frozen nodes over all ranks (0 without ``freeze_on_contact``). Collective."""
+        if self.nodal_pressure is None:
+            return 0
+        return int(self.domain.mesh.comm.allreduce(int(self.frozen.sum()), op=MPI.SUM))
+
+    def nodal_pressures(self) -> np.ndarray:
+        """The pressure at the owned nodes (n_owned,): p_h's values, or the constant p everywhere."""
+        if self.nodal_pressure is None:
+            return np.full(self.V.dofmap.index_map.size_local, float(self.pressure.value))
+        return self.nodal_pressure.x.array[self._q].copy()
 
     def _sum(self, form: fem.Form) -> float:
         return float(self.domain.mesh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
