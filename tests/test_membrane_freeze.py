@@ -28,6 +28,7 @@ from petsc4py import PETSc
 from forms.membrane import MembraneStVK
 from forms.obstacles import Plane
 from meshes.membrane import disc_surface
+from model import compat
 from model.config.membrane import load_membrane
 from model.domain.distribute import build_domain
 from model.errors import ConfigError
@@ -166,9 +167,68 @@ def test_freeze_on_contact_from_the_config(shared_tmp: Path) -> None:
      r"^inflation\.freeze_on_contact: needs a ramp or a list \(pressure / pressures\), not target_volume"),
     ({"inflation": {"contact_fraction": 0.2, "freeze_on_contact": True}},
      r"^inflation\.freeze_on_contact: needs a ramp or a list \(pressure / pressures\), not contact_fraction"),
+    ({"inflation.unit_area": 1}, r"^inflation\.unit_area: "),
     ({"obstacle": []}, r"^inflation\.freeze_on_contact: needs an \[\[obstacle\]\] or a \[\[contact\]\] to touch$"),
 ])
 def test_freeze_on_contact_bad_input_names_the_key(overrides: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message) as err:
         load_membrane(BALLOON, {**DISC, **overrides})
     assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("size", [0.3, 0.15])
+def test_unit_area_force_counts_triangles_not_area(size: float) -> None:
+    """The thesis' unit-area nodal force f_i = (p_i / 3) sum_j n_j on the flat disc at p = 1: its total is the
+    number of triangles e_z (99 at size 0.3, 346 at 0.15), where the consistent p int n da is the area (3.10,
+    3.13): the unit-area load grows like 1/h^2 under refinement."""
+    consistent, _ = _disc(True, plane=False)
+    unit = MembraneProblem(consistent.domain, STVK, axis_orientation(), {"rim": (0, 1, 2)}, unit_area=True)
+    if size != 0.15:
+        domain = build_domain(COMM, disc_surface(1.0, size) if COMM.rank == 0 else None)
+        consistent = MembraneProblem(domain, STVK, axis_orientation(), {"rim": (0, 1, 2)}, freeze_on_contact=True)
+        unit = MembraneProblem(domain, STVK, axis_orientation(), {"rim": (0, 1, 2)}, unit_area=True)
+    for problem in (consistent, unit):
+        problem.u.x.array[:] = 0.0
+        problem.set_pressure(1.0)
+    triangles = unit.domain.mesh.topology.index_map(2).size_global
+    assert triangles == {0.3: 99, 0.15: 346}[size]
+    assert np.allclose(unit.pressure_force(), [0.0, 0.0, triangles], rtol=1e-12, atol=1e-10)
+    assert np.allclose(consistent.pressure_force(), [0.0, 0.0, consistent.reference_area()], rtol=1e-12,
+                       atol=1e-12)
+
+
+@pytest.mark.parametrize("unit_area", [False, True])
+def test_nodal_pressure_jacobian_is_the_residual_derivative(unit_area: bool) -> None:
+    """Taylor test of UFL's Jacobian of the per-node residual at an inflated state with a non-uniform p_h
+    (p_i = 1e-3 (1 + x_i^2)): |R(u + e d) - R(u) - e J d| falls as e^2 (ratio 4 per halving, to 10 %)."""
+    problem, _ = _disc(True, plane=False)
+    if unit_area:
+        problem = MembraneProblem(problem.domain, STVK, axis_orientation(), {"rim": (0, 1, 2)}, unit_area=True)
+    problem.u.interpolate(lambda x: np.vstack([0.05 * x[1], -0.03 * x[0], 0.3 * (1 - x[0] ** 2 - x[1] ** 2)]))
+    problem.nodal_pressure.interpolate(lambda x: 1e-3 * (1.0 + x[0] ** 2))
+    residual = fem.form(problem.residual)
+    jacobian = fem.form(ufl.derivative(problem.residual, problem.u, ufl.TrialFunction(problem.V)))
+
+    def assemble_r() -> np.ndarray:
+        vector = fem_petsc.assemble_vector(residual)
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        out = vector.array_r.copy()
+        vector.destroy()
+        return out
+
+    rng = np.random.default_rng(3)
+    direction = fem.Function(problem.V)
+    direction.x.array[:] = rng.standard_normal(len(direction.x.array))
+    direction.x.scatter_forward()
+    A = fem_petsc.assemble_matrix(jacobian)
+    A.assemble()
+    Jd = A.createVecLeft()
+    A.mult(compat.petsc_vector(direction), Jd)
+    u0, r0, jd = problem.u.x.array.copy(), assemble_r(), Jd.array_r.copy()
+    errors = []
+    for eps in (1e-3, 5e-4, 2.5e-4):
+        problem.u.x.array[:] = u0 + eps * direction.x.array
+        errors.append(COMM.allreduce(float(np.abs(assemble_r() - r0 - eps * jd).max(initial=0.0)), op=MPI.MAX))
+    problem.u.x.array[:] = u0
+    assert errors[0] / errors[1] == pytest.approx(4.0, rel=0.1)
+    assert errors[1] / errors[2] == pytest.approx(4.0, rel=0.1)

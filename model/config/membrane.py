@@ -165,6 +165,10 @@ class InflationSection(Section):
     freeze_on_contact: Flag = key(
         "the thesis' per-node pressure: a node that touches an [[obstacle]] or a [[contact]] keeps the pressure of "
         "the step it first touched at, the others follow the ramp (pressure / pressures only)", default=False)
+    unit_area: Flag = key(
+        "the thesis' unit-area nodal pressure force f_i = (p_i / 3) sum_j n_j over the node's triangles (A_j = 1): "
+        "the pressure is then a force per triangle, and the load grows with the number of triangles (not "
+        "consistent: no mesh convergence)", default=False)
 
     @model_validator(mode="after")
     def _one_path(self) -> InflationSection:

@@ -357,7 +357,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     domain = build_domain(comm, data)
     problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree,
-                              freeze_on_contact=inflation.freeze_on_contact)
+                              freeze_on_contact=inflation.freeze_on_contact, unit_area=inflation.unit_area)
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]

@@ -39,6 +39,17 @@ With p_h = p uniform it is the residual of Pi above: on a surface closed by clam
 round-off (the P1 volume gradient of a closed ring of triangles is the nodal sum of p A n / 3). ``set_pressure``
 sets p on the free nodes, ``freeze`` fixes the given nodes at their current value (model.solvers.membrane
 .inflate freezes the nodes that touch after each step's equilibrium).
+
+The thesis' unit-area pressure force (``unit_area=True``; Skouras et al. 2012's nodal force
+f_i = sum_{j in N_i} (1/3) p_i A_j n_j, "a unit area A_j for all triangles is used" so that the small tendon
+triangles inflate too): A_j = 1 for every triangle, n_j its current unit normal,
+
+    R(u; v) = d/du [int w(F) dA + Pi_contacts] [v] - sum_T (1/|T_0|) int_T p_h n . v dA   (vertex rule),
+
+i.e. f_i = (p_i / 3) sum_{j in N_i} n_j: p is then a force per triangle, not a pressure. The load is not
+consistent: its total is p sum_T n_T, the number of triangles times p instead of p times the area, so it grows
+like 1/h^2 under refinement (no mesh convergence) and on a graded mesh loads each region by its number of
+triangles, not by its area. Implies the per-node pressure (set_pressure, freeze work the same).
 """
 
 from __future__ import annotations
@@ -50,10 +61,12 @@ from dataclasses import dataclass
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from forms.membrane import MembraneLaw, enclosed_volume, membrane_deformation_gradient, tangent_frame
+from forms.quadrature import vertex_rule
 from model import compat
 from model.domain.distribute import Domain
 
@@ -106,6 +119,19 @@ def _normal_field(domain: Domain, orientation: Orientation) -> fem.Function:
     return normal
 
 
+def _area_field(domain: Domain) -> fem.Function:
+    """The rest area |T_0| of each local cell (DG0)."""
+    msh = domain.mesh
+    W = compat.function_space(msh, "DG", 0)
+    area = fem.Function(W, name="reference_area")
+    x = msh.geometry.x[compat.geometry_dofs(msh)][:, :3, :3]
+    a = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
+    dofs = compat.cell_dofs(W.dofmap)[:, 0]
+    area.x.array[dofs] = a[: len(dofs)]
+    area.x.scatter_forward()
+    return area
+
+
 class MembraneProblem:
     """The membrane energy Pi(u) = int w(F) dA - p V(x) on ``domain`` (module docstring).
 
@@ -113,12 +139,12 @@ class MembraneProblem:
     (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0), ``contacts`` (the contact
     terms added to Pi, model.problem.membrane_contact). ``freeze_on_contact``: the pressure per node
     (``nodal_pressure``, a scalar P1 Function; ``frozen``, a bool per owned node; module docstring), ``energy``
-    then without the pressure term.
+    then without the pressure term; ``unit_area``: the thesis' unit-area nodal force (module docstring).
     """
 
     def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
                  fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2,
-                 freeze_on_contact: bool = False) -> None:
+                 freeze_on_contact: bool = False, unit_area: bool = False) -> None:
         msh = domain.mesh
         if msh.topology.dim != 2 or msh.geometry.dim != 3:
             raise ValueError(f"membrane: needs a surface mesh (tdim 2, gdim 3), got tdim {msh.topology.dim}, "
@@ -139,7 +165,8 @@ class MembraneProblem:
         self.volume_form = enclosed_volume(self.u, self.frame, X) * self.dA
         self.nodal_pressure: fem.Function | None = None
         self._load: ufl.Form | None = None
-        if freeze_on_contact:
+        self.freeze_on_contact, self.unit_area = bool(freeze_on_contact), bool(unit_area)
+        if freeze_on_contact or unit_area:
             # the pressure per node: a scalar P1 Function, the dof of each displacement block from the collapsed
             # first component (as the contact multipliers, model.problem.membrane_contact)
             Q, to_v = self.V.sub(0).collapse()
@@ -149,7 +176,15 @@ class MembraneProblem:
             self._q = q_of_block[: self.V.dofmap.index_map.size_local]
             self.frozen = np.zeros(len(self._q), dtype=bool)
             area_vector = ufl.cross(self.F[:, 0], self.F[:, 1])  # n da / dA
-            self._load = self.nodal_pressure * ufl.dot(area_vector, ufl.TestFunction(self.V)) * self.dA
+            v = ufl.TestFunction(self.V)
+            if unit_area:  # (p_i / 3) sum_j n_j: the vertex rule over each triangle divided by its rest area
+                dA_vertex = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags,
+                                        metadata=vertex_rule("triangle"))
+                codes = tuple(sorted({int(c) for v_ in domain.regions.values() for c in v_}))
+                unit = area_vector / ufl.sqrt(ufl.dot(area_vector, area_vector))
+                self._load = self.nodal_pressure * ufl.dot(unit, v) / _area_field(domain) * dA_vertex(codes)
+            else:
+                self._load = self.nodal_pressure * ufl.dot(area_vector, v) * self.dA
             self.energy = self.stretch_energy
         else:
             self.energy = self.stretch_energy - self.pressure * self.volume_form
@@ -189,16 +224,28 @@ class MembraneProblem:
     def freeze(self, nodes: np.ndarray) -> int:
         """Freeze the owned ``nodes`` (a bool per owned node) at their current pressure (frozen ones stay);
         the number of frozen nodes over all ranks. Collective."""
-        if self.nodal_pressure is None:
+        if not self.freeze_on_contact:
             raise ValueError("membrane: freeze needs a problem made with freeze_on_contact=True")
         self.frozen |= np.asarray(nodes, dtype=bool)
         return self.frozen_count()
 
     def frozen_count(self) -> int:
         """The number of frozen nodes over all ranks (0 without ``freeze_on_contact``). Collective."""
-        if self.nodal_pressure is None:
+        if not self.freeze_on_contact:
             return 0
         return int(self.domain.mesh.comm.allreduce(int(self.frozen.sum()), op=MPI.SUM))
+
+    def pressure_force(self) -> np.ndarray:
+        """The pressure's total nodal force sum_i f_i at the current u (3,), every node's (Dirichlet ones too):
+        p int n da, or with ``unit_area`` sum_T p_T n_T. Collective."""
+        v = ufl.TestFunction(self.V)
+        load = self._load if self._load is not None else \
+            self.pressure * ufl.dot(ufl.cross(self.F[:, 0], self.F[:, 1]), v) * self.dA
+        vector = fem_petsc.assemble_vector(fem.form(load))
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        local = vector.array_r.reshape(-1, 3).sum(axis=0)
+        vector.destroy()
+        return np.asarray(self.domain.mesh.comm.allreduce(local, op=MPI.SUM))
 
     def nodal_pressures(self) -> np.ndarray:
         """The pressure at the owned nodes (n_owned,): p_h's values, or the constant p everywhere."""

@@ -60,7 +60,7 @@ class InflationStep:
 
 
 def _step(problem: MembraneProblem, pressure: float, iterations: int) -> InflationStep:
-    frozen = problem.freeze(touching_nodes(problem)) if problem.nodal_pressure is not None else 0
+    frozen = problem.freeze(touching_nodes(problem)) if problem.freeze_on_contact else 0
     return InflationStep(pressure, problem.volume(), problem.elastic_energy(), iterations,
                          fraction_in_contact(problem), frozen)
 
@@ -187,7 +187,7 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
     and bisection; collective: its answer must be the same on every rank); True stops the inflation there:
     InflationStopped carries the steps so far (the last one's state in problem.u)."""
     uzawa = (uzawa_tolerance, max_uzawa)
-    if problem.nodal_pressure is not None:
+    if problem.freeze_on_contact:
         raise ValueError("inflate_to_volume: not with freeze_on_contact (the secant and the bisection go back in "
                          "pressure; freezing needs increasing pressures: inflate)")
     if contact_fraction is not None and not 0.0 < contact_fraction <= 1.0:
