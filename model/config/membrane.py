@@ -162,6 +162,13 @@ class InflationSection(Section):
                                                      default=200)
     cutbacks: Annotated[Integer, Field(ge=0)] = key("halvings of a pressure increment whose Newton fails",
                                                     default=4)
+    freeze_on_contact: Flag = key(
+        "the thesis' per-node pressure: a node that touches an [[obstacle]] or a [[contact]] keeps the pressure of "
+        "the step it first touched at, the others follow the ramp (pressure / pressures only)", default=False)
+    unit_area: Flag = key(
+        "the thesis' unit-area nodal pressure force f_i = (p_i / 3) sum_j n_j over the node's triangles (A_j = 1): "
+        "the pressure is then a force per triangle, and the load grows with the number of triangles (not "
+        "consistent: no mesh convergence)", default=False)
 
     @model_validator(mode="after")
     def _one_path(self) -> InflationSection:
@@ -177,6 +184,9 @@ class InflationSection(Section):
             fail("only applies with pressure (a ramp)", "steps")
         if self.pressures is not None and any(b <= a for a, b in zip(self.pressures, self.pressures[1:])):
             fail("must increase", "pressures")
+        if self.freeze_on_contact and given[0] not in ("pressure", "pressures"):
+            fail(f"needs a ramp or a list (pressure / pressures), not {given[0]} (the secant and the bisection "
+                 "go back in pressure)", "freeze_on_contact")
         if given[0] in ("pressure", "pressures"):
             for k in ("dp", "max_steps"):
                 if k in self.model_fields_set:
@@ -353,6 +363,8 @@ class MembraneRunConfig(Section):
     def _across(self) -> MembraneRunConfig:
         if self.inflation.contact_fraction is not None and not (self.obstacles or self.contacts):
             fail("needs an [[obstacle]] or a [[contact]] to touch", "inflation", "contact_fraction")
+        if self.inflation.freeze_on_contact and not (self.obstacles or self.contacts):
+            fail("needs an [[obstacle]] or a [[contact]] to touch", "inflation", "freeze_on_contact")
         regions = self.membrane.regions
         for i, contact in enumerate(self.contacts):
             for k in ("surface", "master"):

@@ -298,6 +298,8 @@ def _step_record(step: InflationStep, problem: MembraneProblem, config: Membrane
     m = config.membrane
     record: dict[str, Any] = {"pressure": step.pressure, "volume": step.volume, "energy": step.energy,
                               "iterations": step.iterations, "contact_fraction": step.contact_fraction}
+    if config.inflation.freeze_on_contact:
+        record["frozen_nodes"] = step.frozen_nodes
     if m.surface == "sphere_octant":
         stretch = (step.volume / rest_volume) ** (1.0 / 3.0)
         record["stretch"] = stretch
@@ -355,7 +357,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         data, extrusion = _extrusion(config, law, flat, num_points, comm)
         orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     domain = build_domain(comm, data)
-    problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree)
+    problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree,
+                              freeze_on_contact=inflation.freeze_on_contact, unit_area=inflation.unit_area)
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]

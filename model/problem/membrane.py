@@ -1,7 +1,7 @@
 """A pressurised membrane on a triangle surface mesh in 3D (tdim 2, gdim 3), and its closed-form references.
 
     problem = MembraneProblem(domain, law, orientation=radial_orientation(), fixed={"rim": (0, 1, 2)})
-    problem.pressure.value = 0.01      # then model.solvers.membrane.inflate / solve_membrane
+    problem.set_pressure(0.01)         # then model.solvers.membrane.inflate / solve_membrane
 
 Unknown: the displacement u (P1, 3 components) of the surface; deformed position x = X + u. Energy
 
@@ -26,6 +26,30 @@ References (``balloon_pressure``, ``hencky``):
   for nu = 0.3; its sum is w0 = 0.6534 a (p a / E h)^(1/3), what the shooting gives. The often quoted
   0.662 (Timoshenko & Woinowsky-Krieger, Theory of Plates and Shells, 1959) carries Hencky's original higher
   coefficients, corrected later (see Fichter 1997, NASA TP-3658).
+
+Per-node pressure frozen on contact (``freeze_on_contact=True``; the thesis, ch. 3.3.3: "Pressure per-vertex is
+increased linearly over time. When a node collides, its pressure value is frozen to its last value, in order
+to improve the solver's stability"): the pressure is a P1 Function p_h (``nodal_pressure``) and the load is
+written as a follower-pressure residual, not as -p V(x):
+
+    R(u; v) = d/du [int w(F) dA + Pi_contacts] [v] - int_S0 p_h (F t1 x F t2) . v dA,
+
+(F t1 x F t2) dA = n da the deformed area vector; UFL derives the Jacobian of R (not symmetric once p_h varies).
+With p_h = p uniform it is the residual of Pi above: on a surface closed by clamped rims the two agree to
+round-off (the P1 volume gradient of a closed ring of triangles is the nodal sum of p A n / 3). ``set_pressure``
+sets p on the free nodes, ``freeze`` fixes the given nodes at their current value (model.solvers.membrane
+.inflate freezes the nodes that touch after each step's equilibrium).
+
+The thesis' unit-area pressure force (``unit_area=True``; Skouras et al. 2012's nodal force
+f_i = sum_{j in N_i} (1/3) p_i A_j n_j, "a unit area A_j for all triangles is used" so that the small tendon
+triangles inflate too): A_j = 1 for every triangle, n_j its current unit normal,
+
+    R(u; v) = d/du [int w(F) dA + Pi_contacts] [v] - sum_T (1/|T_0|) int_T p_h n . v dA   (vertex rule),
+
+i.e. f_i = (p_i / 3) sum_{j in N_i} n_j: p is then a force per triangle, not a pressure. The load is not
+consistent: its total is p sum_T n_T, the number of triangles times p instead of p times the area, so it grows
+like 1/h^2 under refinement (no mesh convergence) and on a graded mesh loads each region by its number of
+triangles, not by its area. Implies the per-node pressure (set_pressure, freeze work the same).
 """
 
 from __future__ import annotations
@@ -37,10 +61,12 @@ from dataclasses import dataclass
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from forms.membrane import MembraneLaw, enclosed_volume, membrane_deformation_gradient, tangent_frame
+from forms.quadrature import vertex_rule
 from model import compat
 from model.domain.distribute import Domain
 
@@ -93,16 +119,32 @@ def _normal_field(domain: Domain, orientation: Orientation) -> fem.Function:
     return normal
 
 
+def _area_field(domain: Domain) -> fem.Function:
+    """The rest area |T_0| of each local cell (DG0)."""
+    msh = domain.mesh
+    W = compat.function_space(msh, "DG", 0)
+    area = fem.Function(W, name="reference_area")
+    x = msh.geometry.x[compat.geometry_dofs(msh)][:, :3, :3]
+    a = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
+    dofs = compat.cell_dofs(W.dofmap)[:, 0]
+    area.x.array[dofs] = a[: len(dofs)]
+    area.x.scatter_forward()
+    return area
+
+
 class MembraneProblem:
     """The membrane energy Pi(u) = int w(F) dA - p V(x) on ``domain`` (module docstring).
 
     Attributes: ``u`` (displacement), ``pressure`` (fem.Constant), ``energy`` (the UFL form Pi), ``residual``
     (dPi/du), ``bcs``, ``V`` (the space), ``normal`` (the oriented rest normal, DG0), ``contacts`` (the contact
-    terms added to Pi, model.problem.membrane_contact).
+    terms added to Pi, model.problem.membrane_contact). ``freeze_on_contact``: the pressure per node
+    (``nodal_pressure``, a scalar P1 Function; ``frozen``, a bool per owned node; module docstring), ``energy``
+    then without the pressure term; ``unit_area``: the thesis' unit-area nodal force (module docstring).
     """
 
     def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
-                 fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2) -> None:
+                 fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2,
+                 freeze_on_contact: bool = False, unit_area: bool = False) -> None:
         msh = domain.mesh
         if msh.topology.dim != 2 or msh.geometry.dim != 3:
             raise ValueError(f"membrane: needs a surface mesh (tdim 2, gdim 3), got tdim {msh.topology.dim}, "
@@ -121,8 +163,32 @@ class MembraneProblem:
         self.F = membrane_deformation_gradient(self.u, self.frame)
         self.stretch_energy = law.energy(self.F) * self.dA
         self.volume_form = enclosed_volume(self.u, self.frame, X) * self.dA
-        self.energy = self.stretch_energy - self.pressure * self.volume_form
-        self.residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
+        self.nodal_pressure: fem.Function | None = None
+        self._load: ufl.Form | None = None
+        self.freeze_on_contact, self.unit_area = bool(freeze_on_contact), bool(unit_area)
+        if freeze_on_contact or unit_area:
+            # the pressure per node: a scalar P1 Function, the dof of each displacement block from the collapsed
+            # first component (as the contact multipliers, model.problem.membrane_contact)
+            Q, to_v = self.V.sub(0).collapse()
+            self.nodal_pressure = fem.Function(Q, name="nodal_pressure")
+            q_of_block = np.full(len(self.u.x.array) // 3, -1, dtype=np.int64)
+            q_of_block[np.asarray(to_v, dtype=np.int64) // 3] = np.arange(len(to_v))
+            self._q = q_of_block[: self.V.dofmap.index_map.size_local]
+            self.frozen = np.zeros(len(self._q), dtype=bool)
+            area_vector = ufl.cross(self.F[:, 0], self.F[:, 1])  # n da / dA
+            v = ufl.TestFunction(self.V)
+            if unit_area:  # (p_i / 3) sum_j n_j: the vertex rule over each triangle divided by its rest area
+                dA_vertex = ufl.Measure("dx", domain=msh, subdomain_data=domain.cell_tags,
+                                        metadata=vertex_rule("triangle"))
+                codes = tuple(sorted({int(c) for v_ in domain.regions.values() for c in v_}))
+                unit = area_vector / ufl.sqrt(ufl.dot(area_vector, area_vector))
+                self._load = self.nodal_pressure * ufl.dot(unit, v) / _area_field(domain) * dA_vertex(codes)
+            else:
+                self._load = self.nodal_pressure * ufl.dot(area_vector, v) * self.dA
+            self.energy = self.stretch_energy
+        else:
+            self.energy = self.stretch_energy - self.pressure * self.volume_form
+        self.residual = self._residual()
         self.bcs = []
         for name, components in (fixed or {}).items():
             error = domain.boundary_error(name)
@@ -141,7 +207,51 @@ class MembraneProblem:
     def add_energy(self, energy: ufl.Form) -> None:
         """Pi <- Pi + energy (e.g. a contact penalty), and the residual again; before a solver is made."""
         self.energy = self.energy + energy
-        self.residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
+        self.residual = self._residual()
+
+    def _residual(self) -> ufl.Form:
+        """dPi/du, minus the per-node follower load with ``freeze_on_contact``."""
+        residual = ufl.derivative(self.energy, self.u, ufl.TestFunction(self.V))
+        return residual if self._load is None else residual - self._load
+
+    def set_pressure(self, value: float) -> None:
+        """p = ``value``: the constant, and with ``freeze_on_contact`` every node not frozen (ghosts updated)."""
+        self.pressure.value = value
+        if self.nodal_pressure is not None:
+            self.nodal_pressure.x.array[self._q[~self.frozen]] = value
+            self.nodal_pressure.x.scatter_forward()
+
+    def freeze(self, nodes: np.ndarray) -> int:
+        """Freeze the owned ``nodes`` (a bool per owned node) at their current pressure (frozen ones stay);
+        the number of frozen nodes over all ranks. Collective."""
+        if not self.freeze_on_contact:
+            raise ValueError("membrane: freeze needs a problem made with freeze_on_contact=True")
+        self.frozen |= np.asarray(nodes, dtype=bool)
+        return self.frozen_count()
+
+    def frozen_count(self) -> int:
+        """The number of frozen nodes over all ranks (0 without ``freeze_on_contact``). Collective."""
+        if not self.freeze_on_contact:
+            return 0
+        return int(self.domain.mesh.comm.allreduce(int(self.frozen.sum()), op=MPI.SUM))
+
+    def pressure_force(self) -> np.ndarray:
+        """The pressure's total nodal force sum_i f_i at the current u (3,), every node's (Dirichlet ones too):
+        p int n da, or with ``unit_area`` sum_T p_T n_T. Collective."""
+        v = ufl.TestFunction(self.V)
+        load = self._load if self._load is not None else \
+            self.pressure * ufl.dot(ufl.cross(self.F[:, 0], self.F[:, 1]), v) * self.dA
+        vector = fem_petsc.assemble_vector(fem.form(load))
+        vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        local = vector.array_r.reshape(-1, 3).sum(axis=0)
+        vector.destroy()
+        return np.asarray(self.domain.mesh.comm.allreduce(local, op=MPI.SUM))
+
+    def nodal_pressures(self) -> np.ndarray:
+        """The pressure at the owned nodes (n_owned,): p_h's values, or the constant p everywhere."""
+        if self.nodal_pressure is None:
+            return np.full(self.V.dofmap.index_map.size_local, float(self.pressure.value))
+        return self.nodal_pressure.x.array[self._q].copy()
 
     def _sum(self, form: fem.Form) -> float:
         return float(self.domain.mesh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))

@@ -55,7 +55,7 @@ from model.problem.membrane import MembraneProblem
 log = logging.getLogger(__name__)
 
 __all__ = ["MembranePairContact", "ObstacleContact", "contact_fraction", "nodal_measure",
-           "pair_contacts"]
+           "pair_contacts", "touching_nodes"]
 
 def nodal_measure(problem: MembraneProblem, region: str | None = None) -> ufl.Measure:
     """dA over the membrane's cells (or its cell region ``region``) with the vertex rule.
@@ -146,15 +146,20 @@ def _area_fraction(comm: MPI.Comm, lumped: np.ndarray, mask: np.ndarray) -> floa
     return touching / comm.allreduce(float(lumped.sum()), op=MPI.SUM)
 
 
+def touching_nodes(problem: MembraneProblem) -> np.ndarray:
+    """A bool per owned node of the membrane: True where it touches any of its contacts (g < 0). Collective."""
+    mask = np.zeros(problem.V.dofmap.index_map.size_local, dtype=bool)
+    for contact in problem.contacts:
+        mask |= contact.touching()
+    return mask
+
+
 def contact_fraction(problem: MembraneProblem) -> float:
     """The share of the membrane's reference area whose nodes touch any of its contacts (bones or other
     membranes; each node counted once), 0 without contacts. Collective."""
     if not problem.contacts:
         return 0.0
-    mask = np.zeros(problem.contacts[0].n_owned, dtype=bool)
-    for contact in problem.contacts:
-        mask |= contact.touching()
-    return _area_fraction(problem.domain.mesh.comm, problem.contacts[0].membrane_lumped, mask)
+    return _area_fraction(problem.domain.mesh.comm, problem.contacts[0].membrane_lumped, touching_nodes(problem))
 
 
 class ObstacleContact(_NodalContact):

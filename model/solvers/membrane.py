@@ -28,6 +28,7 @@ from petsc4py import PETSc
 from model import compat
 from model.problem.membrane import MembraneProblem
 from model.problem.membrane_contact import contact_fraction as fraction_in_contact
+from model.problem.membrane_contact import touching_nodes
 from model.solvers.form_newton import FormNewton
 
 log = logging.getLogger(__name__)
@@ -54,11 +55,14 @@ class InflationStep:
     energy: float
     iterations: int
     contact_fraction: float = 0.0
+    #: freeze_on_contact: the nodes frozen after this step (model.problem.membrane), 0 otherwise
+    frozen_nodes: int = 0
 
 
 def _step(problem: MembraneProblem, pressure: float, iterations: int) -> InflationStep:
+    frozen = problem.freeze(touching_nodes(problem)) if problem.freeze_on_contact else 0
     return InflationStep(pressure, problem.volume(), problem.elastic_energy(), iterations,
-                         fraction_in_contact(problem))
+                         fraction_in_contact(problem), frozen)
 
 
 class CoupledNewton(FormNewton):
@@ -113,7 +117,7 @@ def _solve_at(problem: MembraneProblem, newton: FormNewton, p_from: float, p_to:
     saved = problem.u.x.array.copy()
     target, current, iterations, left = p_to, p_from, 0, cutbacks
     while True:
-        problem.pressure.value = target
+        problem.set_pressure(target)
         result = newton.solve()
         if result.converged:
             iterations += result.iterations
@@ -152,7 +156,9 @@ def inflate(problem: MembraneProblem, pressures: np.ndarray | list[float], cutba
             options: dict | None = None, uzawa_tolerance: float = 1e-9, max_uzawa: int = 30
             ) -> list[InflationStep]:
     """Equilibria at the increasing ``pressures``, each from the previous one (collective). With augmented
-    contacts each equilibrium is followed by Uzawa rounds until max |min(g, lambda/k)| <= ``uzawa_tolerance``."""
+    contacts each equilibrium is followed by Uzawa rounds until max |min(g, lambda/k)| <= ``uzawa_tolerance``.
+    A problem with ``freeze_on_contact``: after each equilibrium the nodes that touch a contact are frozen at
+    that step's pressure; the next steps raise only the others' (model.problem.membrane)."""
     newton = membrane_newton(problem, options)
     steps, previous = [], float(problem.pressure.value)
     try:
@@ -181,6 +187,9 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
     and bisection; collective: its answer must be the same on every rank); True stops the inflation there:
     InflationStopped carries the steps so far (the last one's state in problem.u)."""
     uzawa = (uzawa_tolerance, max_uzawa)
+    if problem.freeze_on_contact:
+        raise ValueError("inflate_to_volume: not with freeze_on_contact (the secant and the bisection go back in "
+                         "pressure; freezing needs increasing pressures: inflate)")
     if contact_fraction is not None and not 0.0 < contact_fraction <= 1.0:
         raise ValueError(f"inflate_to_volume: contact_fraction must be in (0, 1], got {contact_fraction!r}")
     if contact_fraction is not None and not problem.contacts:
@@ -250,6 +259,6 @@ def _bisect_fraction(problem: MembraneProblem, newton: FormNewton, p_low: float,
         else:
             p_low, u_low = mid, problem.u.x.array.copy()
     problem.u.x.array[:] = u_high
-    problem.pressure.value = p_high
+    problem.set_pressure(p_high)
     log.info("membrane: contact fraction %.4g >= %.4g at p = %.6g", high.contact_fraction, target, p_high)
     return [*tried, high]
