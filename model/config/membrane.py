@@ -5,7 +5,8 @@
 A document with a top-level [membrane] table is a membrane run (a triangle surface in 3D under a follower
 pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig): its sections are
 
-    [membrane]     the surface (a generator of meshes.membrane with radius and size), the law and its
+    [membrane]     the surface (a generator of meshes.membrane with radius and size, or a user's triangle
+                   surface file read by meshes.surface_file: surface = "file", file, orientation), the law and its
                    parameters (plane-stress StVK: young, nu; incompressible neo-Hookean: mu; both: thickness),
                    the Dirichlet border (``fixed``: boundary name -> displacement components held at 0)
     [inflation]    the pressure: a ramp (``pressure`` in ``steps`` equal increments), a list (``pressures``),
@@ -36,6 +37,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, model_validator
 
 from model.config.base import (
+    ExistingFile,
     Flag,
     Integer,
     Name,
@@ -59,9 +61,13 @@ SURFACES: dict[str, dict[str, Any]] = {
     "disc": {"boundaries": ("rim",), "fixed": {"rim": [0, 1, 2]}},
     "facing_discs": {"boundaries": ("lower_rim", "upper_rim"), "regions": ("lower", "upper"),
                      "fixed": {"lower_rim": [0, 1, 2], "upper_rim": [0, 1, 2]}},
+    # a user's file (meshes.surface_file): "boundary" the open edges, plus a .msh file's named physical lines
+    "file": {"boundaries": None, "fixed": {"boundary": [0, 1, 2]}},
 }
 #: the surfaces' own keys (others refuse them)
-SURFACE_KEYS = {"bump": ("disc", "facing_discs"), "gap": ("facing_discs",), "upper_size": ("facing_discs",)}
+SURFACE_KEYS = {"bump": ("disc", "facing_discs", "file"), "gap": ("facing_discs",), "upper_size": ("facing_discs",),
+                "size": ("sphere_octant", "disc", "facing_discs"), "file": ("file",), "orientation": ("file",),
+                "centre": ("file",)}
 #: each law's parameters besides thickness
 LAW_PARAMETERS = {"stvk": ("young", "nu"), "neo_hookean": ("mu",)}
 
@@ -71,13 +77,30 @@ Component = Annotated[Integer, Field(ge=0, le=2)]
 class MembraneSection(Section):
     """[membrane]: the surface, its law and its Dirichlet border."""
 
-    surface: Literal["sphere_octant", "disc", "facing_discs"] = key(
+    surface: Literal["sphere_octant", "disc", "facing_discs", "file"] = key(
         "the surface generator (meshes.membrane): \"sphere_octant\" (x, y, z >= 0 of the sphere |x| = radius, "
         "boundaries x0, y0, z0 on the symmetry planes: the closed balloon by symmetry), \"disc\" (x^2 + y^2 <= "
         "radius^2 in z = 0, boundary rim) or \"facing_discs\" (two membranes of one mesh, meshes.membrane."
         "facing_discs: region lower, the disc in z = 0 with normal +z, and region upper, the disc in z = gap with "
-        "normal -z; boundaries lower_rim, upper_rim; inflated towards each other, for [[contact]])")
-    radius: Positive = key("radius of the sphere or the disc(s)", "m (length)", default=1.0)
+        "normal -z; boundaries lower_rim, upper_rim; inflated towards each other, for [[contact]]) or \"file\" (the "
+        "user's triangle surface of ``file``, meshes.surface_file: boundary \"boundary\" its open edges, and a gmsh "
+        ".msh file's named physical lines)")
+    file: ExistingFile | None = key(
+        "surface = \"file\": the triangle surface, any format meshio reads (.obj, .stl, .ply, .vtu, gmsh .msh ...), "
+        "relative to the configuration file's folder; its coordinates in the length unit; triangles only, every "
+        "edge in at most two of them, none degenerate", default=None)
+    orientation: Literal["file", "outward"] | Point | None = key(
+        "surface = \"file\": the side the pressure pushes to (the rest normals N): \"file\" the triangles' "
+        "right-handed vertex order (default; must be consistent), \"outward\" away from the middle of the "
+        "points' bounding box, or a direction [x, y, z] (N . direction > 0); the result must be consistent",
+        "dimensionless", default=None)
+    centre: Point | None = key(
+        "surface = \"file\": the centre c of the starting bump u = bump R max(0, 1 - |X - c|^2 / R^2) N_vertex "
+        "(default: the middle of the bounding box of the fixed nodes, or of all nodes without any)", "m (length)",
+        default=None)
+    radius: Positive = key("radius of the sphere or the disc(s); surface = \"file\": the starting bump's R and "
+                           "the length of the default [inflation] dp (default: the largest distance of a fixed node, "
+                           "or of any node without any, from centre)", "m (length)", default=1.0)
     size: Positive = key("largest triangle edge of the surface mesh (facing_discs: of the lower disc)",
                          "m (length)", default=0.2)
     gap: Positive | None = key("surface = \"facing_discs\": the distance H between the two discs' planes",
@@ -95,10 +118,12 @@ class MembraneSection(Section):
     thickness: Positive = key("the membrane's thickness h (the energy per area is h w)", "m (length)")
     fixed: dict[Name, Annotated[tuple[Component, ...], Field(min_length=1)]] | None = key(
         "the Dirichlet border: boundary name -> displacement components held at 0 (default: sphere_octant "
-        "{x0 = [0], y0 = [1], z0 = [2]} (symmetry), disc {rim = [0, 1, 2]} (clamped))", default=None)
+        "{x0 = [0], y0 = [1], z0 = [2]} (symmetry), disc {rim = [0, 1, 2]} (clamped), file {boundary = [0, 1, 2]} "
+        "(the open edges clamped); a file's names are checked when it is read, before any solve)", default=None)
     bump: NonNegative = key("disc, facing_discs: Newton starts from the paraboloid u_z = bump radius (1 - "
                             "r^2/radius^2) (facing_discs: each disc towards the other; a flat membrane has no "
-                            "transverse stiffness); the equilibria do not depend on it",
+                            "transverse stiffness); file: from u = bump R max(0, 1 - |X - c|^2/R^2) N_vertex (see "
+                            "centre, radius; N_vertex the nodes' oriented normals); the equilibria do not depend on it",
                             "dimensionless", default=0.05)
     quadrature_degree: Annotated[Integer, Field(ge=1)] = key("quadrature degree of the membrane energy",
                                                               default=2)
@@ -112,8 +137,10 @@ class MembraneSection(Section):
         for k in LAW_PARAMETERS[self.law]:
             if getattr(self, k) is None:
                 fail(f"missing (law = {self.law!r} needs {', '.join(LAW_PARAMETERS[self.law])}, thickness)", k)
+        if self.surface == "file" and self.file is None:
+            fail("missing (surface = 'file' needs the surface's file)", "file")
         known = SURFACES[self.surface]["boundaries"]
-        for name in self.fixed or {}:
+        for name in (self.fixed or {}) if known is not None else ():  # a file's: checked when it is read
             if name not in known:
                 fail(f"{self.surface} has no boundary {name!r} (boundaries: {', '.join(known)})", "fixed", name)
         for k, surfaces in SURFACE_KEYS.items():

@@ -35,7 +35,7 @@ import signal
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -45,11 +45,20 @@ from mpi4py import MPI
 
 from forms.membrane import MembraneLaw, membrane_law
 from meshes.data import MeshData, read_msh, write_msh
-from meshes.membrane import SurfaceMeshData, disc_surface, extrude, facing_discs, smooth_rest_shape, sphere_octant
+from meshes.membrane import (
+    SurfaceMeshData,
+    disc_surface,
+    extrude,
+    facing_discs,
+    smooth_rest_shape,
+    sphere_octant,
+    vertex_normals,
+)
+from meshes.surface_file import oriented_cells, read_surface
 from model.config.membrane import MUSCLE_FILES, MembraneRunConfig
 from model.domain.distribute import build_domain
 from model.errors import ConfigError, SolveFailed
-from model.experiments.membrane import cell_values, close_and_mesh, deformed_points
+from model.experiments.membrane import cell_values, close_and_mesh, deformed_points, set_nodal_displacement
 from model.output.writer import SUMMARY, XdmfSeries, remove_earlier_run, write_json_atomic
 from model.pipeline import Interrupted, StopFlag
 from model.problem.membrane import (
@@ -232,6 +241,90 @@ def _surface(config: MembraneRunConfig) -> SurfaceMeshData:
     return sphere_octant(m.radius, m.size) if m.surface == "sphere_octant" else disc_surface(m.radius, m.size)
 
 
+@dataclass(frozen=True)
+class _FileSurface:
+    """surface = "file": the checked surface with its oriented triangles (rank 0, else None) and the starting
+    bump's centre c and radius R (every rank)."""
+
+    data: SurfaceMeshData | None
+    centre: tuple[float, float, float]
+    radius: float
+
+
+def _read_file_surface(config: MembraneRunConfig) -> tuple[SurfaceMeshData, tuple[float, float, float], float]:
+    """Rank 0: read and check the file (meshes.surface_file), orient its triangles, check the Dirichlet border's
+    names, and find the bump's c and R; ConfigError naming the key and the file."""
+    m = config.membrane
+    try:
+        data = read_surface(m.file)
+    except ValueError as err:
+        raise ConfigError(f"membrane.file: {m.file}: {err}") from None
+    orientation = m.orientation if m.orientation is not None else "file"
+    try:
+        cells = oriented_cells(data.points, data.cells, orientation if isinstance(orientation, str)
+                               else np.asarray(orientation, dtype=np.float64))
+    except ValueError as err:
+        key = "membrane.file" if orientation == "file" else "membrane.orientation"
+        hint = " (turn them in the file or give membrane.orientation)" if orientation == "file" else ""
+        raise ConfigError(f"{key}: {m.file}: {err}{hint}") from None
+    data = SurfaceMeshData(data.points, cells, data.cell_tags, data.facets, data.facet_tags, data.region_names,
+                           data.boundary_names)
+    fixed = []
+    for name in m.border:
+        key = f"membrane.fixed.{name}" if m.fixed is not None else "membrane.fixed"
+        if name not in data.boundary_names:
+            raise ConfigError(f"{key}: {m.file} has no boundary {name!r} (boundaries: "
+                              f"{', '.join(data.boundary_names)})")
+        edges = data.facets[data.facet_tags == data.boundary_names[name]]
+        if not len(edges):
+            raise ConfigError(f"{key}: {m.file} has no edges on {name!r} (a closed surface has no open boundary: "
+                              "give the Dirichlet border)")
+        fixed.append(edges.reshape(-1))
+    nodes = data.points[np.unique(np.concatenate(fixed))] if fixed else data.points
+    centre = (np.asarray(m.centre, dtype=np.float64) if m.centre is not None
+              else 0.5 * (nodes.min(axis=0) + nodes.max(axis=0)))
+    radius = float(m.radius) if "radius" in m.model_fields_set else \
+        float(np.sqrt(np.max(np.sum((nodes - centre) ** 2, axis=1))))
+    if not radius > 0.0:
+        raise ConfigError(f"membrane.radius: the fixed nodes of {m.file} are all at the centre: give radius")
+    return data, tuple(float(c) for c in centre), radius
+
+
+def _file_surface(config: MembraneRunConfig, comm: MPI.Comm) -> _FileSurface:
+    """surface = "file" (_read_file_surface on rank 0); a ConfigError there is raised on every rank. Collective."""
+    data, found, error = None, None, None
+    if comm.rank == 0:
+        try:
+            data, *rest = _read_file_surface(config)
+            found = tuple(rest)
+        except ConfigError as err:
+            error = str(err)
+    found, error = comm.bcast((found, error))
+    if error is not None:
+        raise ConfigError(error)
+    return _FileSurface(data, *found)
+
+
+def _file_bump(config: MembraneRunConfig, surface: _FileSurface, problem: MembraneProblem, comm: MPI.Comm) -> None:
+    """surface = "file": u = bump R max(0, 1 - |X - c|^2 / R^2) N_vertex, N_vertex the oriented vertex normals
+    (meshes.membrane.vertex_normals). Collective."""
+    values = None
+    if comm.rank == 0:
+        data, c, r = surface.data, np.asarray(surface.centre), surface.radius
+        bump = config.membrane.bump * r
+        phi = np.maximum(1 - np.sum((data.points - c) ** 2, axis=1) / r**2, 0.0)
+        values = bump * phi[:, None] * vertex_normals(data.points, data.cells)
+    set_nodal_displacement(problem, comm.bcast(values))
+
+
+def _largest_displacement(problem: MembraneProblem) -> float:
+    """max over the nodes of |u| (collective)."""
+    bs = problem.V.dofmap.index_map_bs
+    n = problem.V.dofmap.index_map.size_local
+    local = np.linalg.norm(problem.u.x.array[: n * bs].reshape(-1, bs), axis=1)
+    return float(problem.domain.mesh.comm.allreduce(local.max() if len(local) else 0.0, op=MPI.MAX))
+
+
 def _orientation(config: MembraneRunConfig) -> Any:
     """The rest normals: outward (octant), +z (disc), towards the other disc (facing_discs)."""
     m = config.membrane
@@ -304,6 +397,8 @@ def _step_record(step: InflationStep, problem: MembraneProblem, config: Membrane
         stretch = (step.volume / rest_volume) ** (1.0 / 3.0)
         record["stretch"] = stretch
         record["balloon_pressure"] = float(balloon_pressure(law, m.radius, stretch))
+    elif m.surface == "file":
+        record["max_displacement"] = _largest_displacement(problem)
     elif m.surface == "facing_discs":
         record["centre_deflection"] = problem.max_component(2)  # the lower disc's (towards +z)
         record["pairs"] = [_pair_record(pair) for pair in pairs]
@@ -347,11 +442,16 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
     remove_earlier_run(out, comm)
     m, inflation = config.membrane, config.inflation
     law = membrane_law(m.law, **m.law_parameters)
-    flat = data = _surface(config) if comm.rank == 0 else None
+    surface_file = _file_surface(config, comm) if m.surface == "file" else None
+    if surface_file is not None:
+        flat = data = surface_file.data
+        orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
+    else:
+        flat = data = _surface(config) if comm.rank == 0 else None
+        orientation = _orientation(config)
     num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
     if config.muscle is not None:
         _check_ends(config, data, comm)
-    orientation = _orientation(config)
     extrusion = None
     if config.extrusion is not None:  # the first phase: data becomes the smoothed rest shape (rank 0)
         data, extrusion = _extrusion(config, law, flat, num_points, comm)
@@ -371,10 +471,13 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         side = (lambda x: _facing_side(x[2], m.gap)) if m.surface == "facing_discs" else (lambda x: 1.0)
         problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0],
                                                    side(x) * bump * (1 - (x[0]**2 + x[1]**2) / m.radius**2)]))
+    if surface_file is not None:
+        _file_bump(config, surface_file, problem, comm)
+    scale = surface_file.radius if surface_file is not None else m.radius
     units = config.units
     summary: dict[str, Any] = {
         "kind": "membrane", "config": config.document, "status": "running",
-        "surface": {"generator": m.surface, "radius": m.radius, "size": m.size,
+        "surface": {"generator": m.surface, "radius": scale, "size": None if surface_file else m.size,
                     "triangles": domain.mesh.topology.index_map(2).size_global, "nodes": num_points,
                     "reference_area": problem.reference_area(), "rest_volume": rest_volume,
                     "fixed": {k: list(v) for k, v in m.border.items()}},
@@ -387,6 +490,9 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
     }
     if extrusion is not None:
         summary["extrusion"] = extrusion
+    if surface_file is not None:
+        summary["surface"].update({"file": str(config.membrane.file), "centre": list(surface_file.centre),
+                                   "orientation": m.orientation if m.orientation is not None else "file"})
     writer = _Writer(problem, data, num_points, out, config.output.xdmf, config.output.vtu)
 
     def save() -> None:
@@ -417,7 +523,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
                     raise interrupted(signum, len(steps), p)
                 save()
         else:
-            dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
+            dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / scale
             signals = [0]
             found: list[InflationStep] = []  # the equilibria recorded, in summary["steps"]'s order
 

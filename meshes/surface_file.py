@@ -1,0 +1,190 @@
+"""A user's triangle surface from a file (any format meshio reads: OBJ, STL, PLY, VTU, gmsh .msh ...), checked.
+
+    data = read_surface("patch.obj")              # a meshes.membrane.SurfaceMeshData, region "membrane"
+    cells = oriented_cells(data.points, data.cells, "file")   # or "outward", or a direction
+
+``read_surface`` keeps the file's triangles (every triangle block), drops the points no triangle uses and merges
+points with identical coordinates (an STL repeats them per facet); the coordinates are taken as they are (in the
+configuration's length unit). Boundaries (edges, for Dirichlet conditions):
+
+* ``boundary``: the open boundary, every edge of exactly one triangle (found here; none on a closed surface);
+* each named gmsh physical line group of a .msh file (its line elements, which must be edges of the triangles);
+  a group named "boundary" replaces the automatic one.
+
+Refused with a one-line ValueError (the caller names the key and the file): a file meshio cannot read, no
+triangles, other 2D or 3D cells (quads, polygons, tetrahedra: a mixed mesh), a triangle with a repeated vertex
+or a zero area (|(x1 - x0) x (x2 - x0)| <= 1e-10 l^2, l its longest edge), a non-manifold edge (shared by more
+than two triangles), a named line that is not an edge of the surface.
+
+Orientation (``oriented_cells``): two triangles sharing an edge are consistently oriented when they run through it
+in opposite directions (their right-handed normals on the same side). ``"file"`` keeps the file's vertex order
+and refuses an inconsistent one; a direction ``(3,)`` or ``"outward"`` (away from the middle of the points'
+bounding box) turns each triangle so that its normal has a positive component along it, and refuses a result
+that is inconsistent (e.g. a closed surface given one direction).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from meshes.membrane import SurfaceMeshData, orient_triangles
+
+__all__ = ["AUTO_BOUNDARY", "check_orientation", "oriented_cells", "read_surface"]
+
+#: the name of the open boundary found from the triangles
+AUTO_BOUNDARY = "boundary"
+_SURFACE_CELLS = ("quad", "polygon", "triangle6", "quad8", "quad9", "triangle7")
+_VOLUME_CELLS = ("tetra", "hexahedron", "wedge", "pyramid", "tetra10", "hexahedron20", "hexahedron27")
+
+
+def _edges(cells: np.ndarray) -> np.ndarray:
+    """The three directed edges of each triangle, (3 m, 2): (v0, v1), (v1, v2), (v2, v0)."""
+    return np.concatenate([cells[:, [0, 1]], cells[:, [1, 2]], cells[:, [2, 0]]])
+
+
+def _undirected(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct undirected edges (sorted pairs), the edge of each directed edge, and each edge's count."""
+    directed = _edges(cells)
+    edges, index, counts = np.unique(np.sort(directed, axis=1), axis=0, return_inverse=True, return_counts=True)
+    return edges, np.asarray(index).reshape(-1), counts
+
+
+def _read(path: Path):  # noqa: ANN202 - a meshio.Mesh
+    import meshio
+
+    return meshio.read(path)
+
+
+def read_surface(path: str | Path) -> SurfaceMeshData:
+    """The checked triangle surface of ``path`` (module docstring); ValueError with a one-line reason."""
+    path = Path(path)
+    try:
+        mesh = _read(path)
+    except Exception as err:  # noqa: BLE001 - any reader failure is one reason
+        raise ValueError(f"cannot read it: {' '.join(str(err).split()) or type(err).__name__}") from None
+    kinds = [block.type for block in mesh.cells]
+    other = sorted({k for k in kinds if k in _SURFACE_CELLS or k in _VOLUME_CELLS})
+    if other:
+        raise ValueError(f"has {', '.join(other)} cells besides triangles (a membrane takes a triangle surface only)")
+    blocks = [i for i, k in enumerate(kinds) if k == "triangle"]
+    if not blocks:
+        raise ValueError("has no triangles")
+    points = np.asarray(mesh.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise ValueError(f"points of shape {points.shape}: need x, y(, z)")
+    if points.shape[1] == 2:
+        points = np.column_stack([points, np.zeros(len(points))])
+    cells = np.concatenate([np.asarray(mesh.cells[i].data, dtype=np.int64) for i in blocks])
+    lines = _named_lines(mesh)
+    # the points the triangles use, identical coordinates merged, in the file's order
+    used = np.unique(cells)
+    unique, first, inverse = np.unique(points[used], axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty(len(order), dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    new = np.full(len(points), -1, dtype=np.int64)
+    new[used] = rank[np.asarray(inverse).reshape(-1)]
+    points, cells = unique[order], new[cells]
+    _check_triangles(points, cells)
+    edges, _, counts = _undirected(cells)
+    if np.any(counts > 2):
+        bad = edges[counts > 2][0]
+        raise ValueError(f"has {int(np.count_nonzero(counts > 2))} non-manifold edges (shared by more than two "
+                         f"triangles), e.g. the edge of points {points[bad[0]].tolist()} and {points[bad[1]].tolist()}")
+    named: dict[str, np.ndarray] = {}
+    if AUTO_BOUNDARY not in lines:
+        named[AUTO_BOUNDARY] = edges[counts == 1]
+    for name, line in lines.items():
+        if np.any(new[line] < 0):
+            raise ValueError(f"physical line {name!r} has points that are on no triangle")
+        pairs = np.sort(new[line], axis=1)
+        found = _rows_in(pairs, edges)
+        if not np.all(found):
+            raise ValueError(f"physical line {name!r} has {int(np.count_nonzero(~found))} elements that are not "
+                             "edges of the triangles")
+        named[name] = pairs
+    names = {name: k for k, name in enumerate(named, start=1)}
+    facets = np.concatenate([named[n] for n in names]).astype(np.int64).reshape(-1, 2)
+    facet_tags = np.concatenate([np.full(len(named[n]), names[n], dtype=np.int32) for n in names])
+    return SurfaceMeshData(points, cells, np.ones(len(cells), dtype=np.int32), facets, facet_tags,
+                           {"membrane": 1}, names)
+
+
+def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """Whether each row of ``rows`` (k, 2) is a row of ``table`` (n, 2), both of non-negative integers."""
+    scale = int(max(rows.max(initial=0), table.max(initial=0))) + 1
+    return np.isin(rows[:, 0] * scale + rows[:, 1], table[:, 0] * scale + table[:, 1])
+
+
+def _named_lines(mesh) -> dict[str, np.ndarray]:  # noqa: ANN001 - a meshio.Mesh
+    """A gmsh file's named physical line groups: name -> (k, 2) point indices (the file's numbering)."""
+    tags = mesh.cell_data.get("gmsh:physical")
+    if tags is None:
+        return {}
+    names = {int(v[0]): name for name, v in (mesh.field_data or {}).items() if len(v) > 1 and int(v[1]) == 1}
+    lines: dict[str, list[np.ndarray]] = {}
+    for block, block_tags in zip(mesh.cells, tags, strict=True):
+        if block.type != "line":
+            continue
+        block_tags = np.asarray(block_tags).reshape(-1)
+        for tag, name in names.items():
+            selected = np.asarray(block.data, dtype=np.int64)[block_tags == tag]
+            if len(selected):
+                lines.setdefault(name, []).append(selected)
+    return {name: np.concatenate(parts) for name, parts in lines.items()}
+
+
+def _check_triangles(points: np.ndarray, cells: np.ndarray) -> None:
+    """ValueError for a triangle with a repeated vertex or a zero area (relative to its longest edge)."""
+    repeated = (cells[:, 0] == cells[:, 1]) | (cells[:, 1] == cells[:, 2]) | (cells[:, 2] == cells[:, 0])
+    p = points[cells]
+    area2 = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    longest = np.max(np.linalg.norm(p - p[:, [1, 2, 0]], axis=2), axis=1)
+    degenerate = repeated | (area2 <= 1e-10 * longest**2)
+    if np.any(degenerate):
+        i = int(np.flatnonzero(degenerate)[0])
+        raise ValueError(f"has {int(np.count_nonzero(degenerate))} degenerate triangles (a repeated vertex or zero "
+                         f"area), e.g. triangle {i} with points {p[i].tolist()}")
+
+
+def check_orientation(cells: np.ndarray) -> tuple[int, tuple[int, int] | None]:
+    """How many interior edges two triangles run through in the same direction (inconsistent orientation), and
+    one such pair of triangles (None when consistent)."""
+    cells = np.asarray(cells, dtype=np.int64)
+    directed = _edges(cells)
+    _, index, counts = _undirected(cells)
+    interior = counts[index] == 2
+    rows = np.flatnonzero(interior)
+    # each interior edge twice; consistent when one copy is (a, b) and the other (b, a)
+    order = rows[np.argsort(index[rows], kind="stable")]
+    a, b = order[0::2], order[1::2]
+    same = np.all(directed[a] == directed[b], axis=1)
+    if not np.any(same):
+        return 0, None
+    m = len(cells)
+    k = int(np.flatnonzero(same)[0])
+    return int(np.count_nonzero(same)), (int(a[k] % m), int(b[k] % m))
+
+
+def oriented_cells(points: np.ndarray, cells: np.ndarray, orientation: str | np.ndarray) -> np.ndarray:
+    """The triangles turned by ``orientation`` ("file", "outward" or a direction; module docstring), checked
+    consistent; ValueError naming two inconsistent neighbours otherwise."""
+    points = np.asarray(points, dtype=np.float64)
+    if isinstance(orientation, str) and orientation == "file":
+        result = np.asarray(cells, dtype=np.int64)
+    elif isinstance(orientation, str) and orientation == "outward":
+        middle = 0.5 * (points.min(axis=0) + points.max(axis=0))
+        result = orient_triangles(points, cells, points[cells].mean(axis=1) - middle)
+    elif isinstance(orientation, str):
+        raise ValueError(f"unknown orientation {orientation!r}")
+    else:
+        result = orient_triangles(points, cells, np.asarray(orientation, dtype=np.float64))
+    count, pair = check_orientation(result)
+    if count:
+        how = "the file's vertex order" if isinstance(orientation, str) and orientation == "file" else \
+            f"orientation {orientation if isinstance(orientation, str) else list(map(float, orientation))}"
+        raise ValueError(f"triangles inconsistently oriented by {how}: {count} edges run the same way in both "
+                         f"their triangles, e.g. triangles {pair[0]} and {pair[1]}")
+    return result

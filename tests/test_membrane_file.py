@@ -1,0 +1,177 @@
+"""A membrane run on the user's own triangle surface (surface = "file": meshes.surface_file, docs/membranes.md).
+
+- the built-in disc (meshes.membrane.disc_surface) written to OBJ and to gmsh .msh (its rim a named physical
+  line) and inflated from the file: the same displacement node by node (matched by coordinates) as the built-in
+  disc to 1e-12, and the same pressure-volume records; the .msh's named line is a border;
+- the same file with half its triangles turned: refused with orientation = "file" (the file named), and
+  inflated to the same displacements with orientation = [0, 0, 1];
+- bad files: a one-line ConfigError naming the key and the file before any solve (missing, unreadable, no
+  triangles, quads besides triangles, a non-manifold edge, a degenerate triangle, an unknown border name, a
+  closed surface with the default border);
+- examples/membrane_file.toml (examples/data/dome_patch.obj) runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+from conftest import EXAMPLES
+from mpi4py import MPI
+
+from meshes.membrane import disc_surface, sphere_surface
+from model.config.membrane import load_membrane, parse_membrane
+from model.errors import ConfigError
+
+RADIUS, SIZE = 1.0, 0.3
+BASE = {"law": "stvk", "young": 1.0, "nu": 0.3, "thickness": 0.01, "bump": 0.03}
+INFLATION = {"pressures": [2e-7, 1e-6]}
+OUTPUT = {"xdmf": False, "vtu": True}
+
+
+def _write(data, path: Path, cells: np.ndarray | None = None, msh: bool = False) -> Path:  # noqa: ANN001
+    """The surface written with meshio on rank 0 (.msh: triangles and the rim as physical groups)."""
+    if MPI.COMM_WORLD.rank == 0:
+        cells = data.cells if cells is None else cells
+        if msh:
+            rim = data.facets[data.facet_tags == data.boundary_names["rim"]]
+            mesh = meshio.Mesh(data.points, [("line", rim), ("triangle", cells)],
+                               cell_data={"gmsh:physical": [np.full(len(rim), 2), np.full(len(cells), 1)],
+                                          "gmsh:geometrical": [np.full(len(rim), 2), np.full(len(cells), 1)]},
+                               field_data={"membrane": np.array([1, 2]), "edge": np.array([2, 1])})
+            mesh.write(path, file_format="gmsh22", binary=False)
+        else:
+            meshio.Mesh(data.points, [("triangle", cells)]).write(path)
+    MPI.COMM_WORLD.barrier()
+    return path
+
+
+def _run(membrane: dict, out: Path, inflation: dict | None = None) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Run; the summary, the rest points and the last step's displacement at them (its VTU file)."""
+    from model.experiments.membrane_run import run_membrane
+
+    config = parse_membrane({"membrane": {**BASE, **membrane}, "inflation": inflation or INFLATION,
+                             "output": OUTPUT})
+    summary = run_membrane(config, out, MPI.COMM_WORLD)
+    last = meshio.read(out / sorted(f for f in summary["files"] if f.endswith(".vtu"))[-1])
+    return summary, last.points, last.point_data["u"]
+
+
+def _by_coordinates(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """The index into ``points`` of each reference point (exact coordinates)."""
+    from scipy.spatial import cKDTree
+
+    distance, index = cKDTree(points).query(reference)
+    assert distance.max() == 0.0
+    return index
+
+
+@pytest.fixture(scope="module")
+def disc():  # noqa: ANN201
+    return disc_surface(RADIUS, SIZE)
+
+
+@pytest.fixture(scope="module")
+def builtin(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, np.ndarray, np.ndarray]:
+    out = Path(MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("builtin")), root=0))
+    return _run({"surface": "disc", "radius": RADIUS, "size": SIZE}, out)
+
+
+def _same_as_builtin(result: tuple[dict, np.ndarray, np.ndarray], builtin: tuple) -> None:
+    summary, rest, u = result
+    ref_summary, ref_rest, ref_u = builtin
+    index = _by_coordinates(rest, ref_rest)
+    assert len(rest) == len(ref_rest)
+    assert np.max(np.abs(u[index] - ref_u)) <= 1e-12 * np.max(np.abs(ref_u))
+    assert np.max(np.abs(ref_u[:, 2])) > 0.01  # inflated: u_z ~ 0.03 at the centre
+    for step, ref in zip(summary["steps"], ref_summary["steps"], strict=True):
+        assert step["pressure"] == ref["pressure"]
+        assert step["volume"] == pytest.approx(ref["volume"], rel=1e-12)
+        assert step["energy"] == pytest.approx(ref["energy"], rel=1e-10)
+    assert summary["surface"]["rest_volume"] == pytest.approx(0.0, abs=1e-14)
+    assert summary["surface"]["reference_area"] == pytest.approx(ref_summary["surface"]["reference_area"], rel=1e-14)
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".msh"])
+def test_a_file_inflates_as_the_builtin_disc(disc, builtin, shared_tmp: Path, suffix: str) -> None:  # noqa: ANN001
+    path = _write(disc, shared_tmp / f"disc{suffix}", msh=suffix == ".msh")
+    border = {"fixed": {"edge": [0, 1, 2]}} if suffix == ".msh" else {}
+    result = _run({"surface": "file", "file": str(path), "centre": [0.0, 0.0, 0.0], "radius": RADIUS, **border},
+                  shared_tmp / "out")
+    _same_as_builtin(result, builtin)
+    assert result[0]["surface"]["file"] == str(path)
+    assert result[0]["surface"]["triangles"] == len(disc.cells)
+
+
+def test_inconsistent_triangles_refused_or_oriented(disc, builtin, shared_tmp: Path) -> None:  # noqa: ANN001
+    cells = disc.cells.copy()
+    cells[::2] = cells[::2][:, [0, 2, 1]]
+    path = _write(disc, shared_tmp / "mixed.ply", cells)
+    with pytest.raises(ConfigError, match=r"^membrane\.file: .*mixed\.ply: triangles inconsistently oriented by the "
+                                          r"file's vertex order: \d+ edges .*give membrane\.orientation\)$"):
+        _run({"surface": "file", "file": str(path)}, shared_tmp / "refused")
+    result = _run({"surface": "file", "file": str(path), "orientation": [0.0, 0.0, 1.0], "centre": [0.0, 0.0, 0.0],
+                   "radius": RADIUS}, shared_tmp / "oriented")
+    _same_as_builtin(result, builtin)
+
+
+def _bad_files(folder: Path) -> dict[str, Path]:
+    """Bad surfaces written on rank 0."""
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0.5, 1.0], [2, 0, 0]], dtype=float)
+    files = {"missing": folder / "none.obj", "unreadable": folder / "garbage.stl",
+             "no_triangles": folder / "lines.vtu", "quads": folder / "quads.vtu", "non_manifold": folder / "fin.obj",
+             "degenerate": folder / "flat.obj", "closed": folder / "sphere.obj"}
+    if MPI.COMM_WORLD.rank == 0:
+        files["unreadable"].write_text("solid nothing\n facet normal garbage\n")
+        meshio.Mesh(p, [("line", np.array([[0, 1], [1, 2]]))]).write(files["no_triangles"])
+        meshio.Mesh(p, [("triangle", np.array([[0, 1, 2]])), ("quad", np.array([[0, 1, 3, 2]]))]).write(
+            files["quads"])
+        meshio.Mesh(p, [("triangle", np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]]))]).write(files["non_manifold"])
+        meshio.Mesh(p, [("triangle", np.array([[0, 1, 2], [0, 1, 5]]))]).write(files["degenerate"])
+        sphere = sphere_surface(1.0, 0.8)
+        meshio.Mesh(sphere.points, [("triangle", sphere.cells)]).write(files["closed"])
+    MPI.COMM_WORLD.barrier()
+    return files
+
+
+@pytest.mark.parametrize(("name", "extra", "message"), [
+    ("missing", {}, r"^membrane\.file: no such file: .*none\.obj$"),
+    ("unreadable", {}, r"^membrane\.file: .*garbage\.stl: cannot read it: "),
+    ("no_triangles", {}, r"^membrane\.file: .*lines\.vtu: has no triangles$"),
+    ("quads", {}, r"^membrane\.file: .*quads\.vtu: has quad cells besides triangles"),
+    ("non_manifold", {}, r"^membrane\.file: .*fin\.obj: has 1 non-manifold edges \(shared by more than two"),
+    ("degenerate", {}, r"^membrane\.file: .*flat\.obj: has 1 degenerate triangles"),
+    ("closed", {}, r"^membrane\.fixed: .*sphere\.obj has no edges on 'boundary' \(a closed surface"),
+    ("closed", {"fixed": {"rim": [2]}}, r"^membrane\.fixed\.rim: .*sphere\.obj has no boundary 'rim' "
+                                        r"\(boundaries: boundary\)$"),
+])
+def test_bad_files_name_the_key_and_file(shared_tmp: Path, name: str, extra: dict, message: str) -> None:
+    path = _bad_files(shared_tmp)[name]
+    with pytest.raises(ConfigError, match=message) as err:
+        _run({"surface": "file", "file": str(path), **extra}, shared_tmp / "out")
+    assert "\n" not in str(err.value)
+    assert not (shared_tmp / "out" / "summary.json").exists()
+
+
+@pytest.mark.parametrize(("membrane", "message"), [
+    ({"surface": "file"}, r"^membrane\.file: missing \(surface = 'file' needs"),
+    ({"surface": "disc", "orientation": "outward"}, r"^membrane\.orientation: only applies to surface = 'file'"),
+    ({"surface": "file", "file": __file__, "size": 0.1}, r"^membrane\.size: only applies to surface = "),
+    ({"surface": "file", "file": __file__, "orientation": "inward"}, r"^membrane\.orientation: "),
+])
+def test_file_keys(membrane: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_membrane({"membrane": {**BASE, **membrane}, "inflation": INFLATION})
+
+
+def test_the_example(shared_tmp: Path) -> None:
+    from model.experiments.membrane_run import run_membrane
+
+    config = load_membrane(EXAMPLES / "membrane_file.toml", {"output.xdmf": False, "output.vtu": False})
+    summary = run_membrane(config, shared_tmp / "example", MPI.COMM_WORLD)
+    assert summary["status"] == "completed"
+    volumes = [s["volume"] for s in summary["steps"]]
+    assert all(b > a for a, b in zip(volumes, volumes[1:]))
+    assert volumes[0] > summary["surface"]["rest_volume"]
