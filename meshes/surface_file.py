@@ -25,6 +25,7 @@ that is inconsistent (e.g. a closed surface given one direction).
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +55,9 @@ def _undirected(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _read(path: Path):  # noqa: ANN202 - a meshio.Mesh
     import meshio
 
-    return meshio.read(path)
+    with warnings.catch_warnings():  # meshio's STL size test overflows numpy 2's uint32 (harmless)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return meshio.read(path)
 
 
 def read_surface(path: str | Path) -> SurfaceMeshData:

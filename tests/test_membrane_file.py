@@ -1,8 +1,9 @@
 """A membrane run on the user's own triangle surface (surface = "file": meshes.surface_file, docs/membranes.md).
 
-- the built-in disc (meshes.membrane.disc_surface) written to OBJ and to gmsh .msh (its rim a named physical
-  line) and inflated from the file: the same displacement node by node (matched by coordinates) as the built-in
-  disc to 1e-12, and the same pressure-volume records; the .msh's named line is a border;
+- the built-in disc (meshes.membrane.disc_surface) written to OBJ, STL (a triangle soup: its points merged) and
+  gmsh .msh (its rim a named physical line) and inflated from the file: the same displacement node by node
+  (matched by coordinates) as the built-in disc to 1e-12, and the same pressure-volume records; the .msh's named
+  line is a border;
 - the same file with half its triangles turned: refused with orientation = "file" (the file named), and
   inflated to the same displacements with orientation = [0, 0, 1];
 - bad files: a one-line ConfigError naming the key and the file before any solve (missing, unreadable, no
@@ -94,7 +95,7 @@ def _same_as_builtin(result: tuple[dict, np.ndarray, np.ndarray], builtin: tuple
     assert summary["surface"]["reference_area"] == pytest.approx(ref_summary["surface"]["reference_area"], rel=1e-14)
 
 
-@pytest.mark.parametrize("suffix", [".obj", ".msh"])
+@pytest.mark.parametrize("suffix", [".obj", ".stl", ".msh"])
 def test_a_file_inflates_as_the_builtin_disc(disc, builtin, shared_tmp: Path, suffix: str) -> None:  # noqa: ANN001
     path = _write(disc, shared_tmp / f"disc{suffix}", msh=suffix == ".msh")
     border = {"fixed": {"edge": [0, 1, 2]}} if suffix == ".msh" else {}
