@@ -176,3 +176,33 @@ def test_the_example(shared_tmp: Path) -> None:
     volumes = [s["volume"] for s in summary["steps"]]
     assert all(b > a for a, b in zip(volumes, volumes[1:]))
     assert volumes[0] > summary["surface"]["rest_volume"]
+
+
+def test_outward_and_a_direction_on_a_closed_surface() -> None:
+    """The whole sphere with its triangles turned at random: "outward" orients all of them away from the centre
+    (consistent), one direction cannot orient a closed surface consistently (refused, naming it)."""
+    from meshes.surface_file import check_orientation, oriented_cells
+
+    sphere = sphere_surface(1.0, 0.8)
+    cells = sphere.cells.copy()
+    turn = np.random.default_rng(1).random(len(cells)) < 0.5
+    cells[turn] = cells[turn][:, [0, 2, 1]]
+    assert check_orientation(cells)[0] > 0
+    outward = oriented_cells(sphere.points, cells, "outward")
+    assert check_orientation(outward) == (0, None)
+    p = sphere.points[outward]
+    normals = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    assert np.all(np.einsum("ij,ij->i", normals, p.mean(axis=1)) > 0)
+    with pytest.raises(ValueError, match=r"^triangles inconsistently oriented by orientation \[0\.0, 0\.0, 1\.0\]: "):
+        oriented_cells(sphere.points, cells, np.array([0.0, 0.0, 1.0]))
+
+
+def test_a_flat_file_cannot_be_oriented_outward(disc, shared_tmp: Path) -> None:  # noqa: ANN001
+    """A flat disc's triangles are all perpendicular to "outward" (in-plane): the file's inconsistent order stays
+    and the run is refused naming membrane.orientation."""
+    cells = disc.cells.copy()
+    cells[::2] = cells[::2][:, [0, 2, 1]]
+    path = _write(disc, shared_tmp / "mixed.obj", cells)
+    with pytest.raises(ConfigError, match=r"^membrane\.orientation: .*mixed\.obj: triangles inconsistently oriented "
+                                          r"by orientation outward: "):
+        _run({"surface": "file", "file": str(path), "orientation": "outward"}, shared_tmp / "out")
