@@ -436,13 +436,15 @@ def run_membrane(config: MembraneRunConfig, out: Path | None = None, comm: MPI.C
 def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, stop: Any) -> dict[str, Any]:
     start = time.perf_counter()
     out = Path(out) if out is not None else config.output.dir
+    m = config.membrane
+    # a surface file is read and checked first: a bad one leaves the output folder as it was
+    surface_file = _file_surface(config, comm) if m.surface == "file" else None
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
     comm.barrier()
     remove_earlier_run(out, comm)
     m, inflation = config.membrane, config.inflation
     law = membrane_law(m.law, **m.law_parameters)
-    surface_file = _file_surface(config, comm) if m.surface == "file" else None
     if surface_file is not None:
         flat = data = surface_file.data
         orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
