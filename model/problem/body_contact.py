@@ -104,6 +104,7 @@ from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
+from scipy.sparse import csr_matrix
 
 from forms.obstacles import (
     augmented_lagrangian_energy,
@@ -305,6 +306,7 @@ class BodyContact:
             for key in ("Rz", "Kuz", "Kzz"):
                 del self._ufl[key]
         self._compiled: dict[str, Any] = {}
+        self._matrices: dict[str, PETSc.Mat] = {}  # the K forms' matrices, made once (_assembled)
         self._stamp: np.ndarray | None = None
         problem.add_energy(energy, "contact" if kind == "contact" else "sliding")
         problem.couplings.append(self)
@@ -530,32 +532,54 @@ class BodyContact:
         return r
 
     def _assembled(self, key: str) -> PETSc.Mat:
-        matrix = fem_petsc.assemble_matrix(self._form(key))
-        matrix.assemble()
-        return matrix
+        """The form's matrix K, assembled into the matrix made for it once (the forms live on the slave surface:
+        their sparsity pattern never changes; a new matrix and pattern per call was half of the coupling's time).
+        Owned by the pair: the caller does not destroy it."""
+        K = self._matrices.get(key)
+        if K is None:
+            K = self._matrices[key] = fem_petsc.create_matrix(self._form(key))
+        else:
+            K.zeroEntries()
+        fem_petsc.assemble_matrix(K, self._form(key))
+        K.assemble()
+        return K
+
+    def _summed(self, terms: list[PETSc.Mat]) -> PETSc.Mat:
+        """sum_t M_t (parallel AIJ matrices of V's layout) in one pass, the same numbers as a MatAXPY per term (each
+        of which built a new union pattern): each term's owned rows (CSR, global columns) added with scipy in the
+        given order (((M_0 + M_1) + M_2) ...), one matrix from the sum. scipy leaves out exact zeros: the
+        vertex-measure forms' element pattern makes most of K's stored entries zero, and as MatAXPY kept them
+        they grew A's pattern and its factorisation (A's values are the same; its factorisation's round-off
+        not). The terms are destroyed. Collective."""
+        sizes = terms[0].getSizes()
+        shape = (sizes[0][0], sizes[1][1])
+        total: csr_matrix | None = None
+        for M in terms:
+            indptr, indices, values = M.getValuesCSR()  # new arrays (copies)
+            part = csr_matrix((values, indices, indptr), shape=shape)
+            total = part if total is None else total + part
+            M.destroy()
+        assert total is not None
+        total.eliminate_zeros()  # a single term's stored zeros (the sums leave out theirs)
+        total.sort_indices()
+        index = PETSc.IntType
+        C = PETSc.Mat().createAIJ(sizes, csr=(total.indptr.astype(index), total.indices.astype(index), total.data),
+                                  comm=self.comm)
+        C.assemble()
+        return C
 
     def _exact_coupling(self) -> PETSc.Mat:
         """sum_i (K_u,zi P_i + P_i^T K_zi,u) + sum_ij P_i^T K_zi,zj P_j (K_zj,zi = K_zi,zj^T: the i < j terms once,
-        with their transposes)."""
-        C: PETSc.Mat | None = None
-        different = PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
+        with their transposes), summed in one pass (_summed)."""
+        terms: list[PETSc.Mat] = []
 
         def add(M: PETSc.Mat, symmetric: bool) -> None:
-            nonlocal C
-            if C is None:
-                C = M.copy()
-            else:
-                C.axpy(1.0, M, structure=different)
-            if symmetric:
-                T = M.transpose()
-                C.axpy(1.0, T, structure=different)
-                T.destroy()
-            M.destroy()
+            terms.append(M)
+            if symmetric:  # a new matrix (transpose() without one transposes M in place)
+                terms.append(M.transpose(PETSc.Mat()))
 
         for i, Pi in enumerate(self.P):
-            K = self._assembled(f"Kuz{i}")
-            add(K.matMult(Pi), True)
-            K.destroy()
+            add(self._assembled(f"Kuz{i}").matMult(Pi), True)
             for j in range(i, 3):
                 K = self._assembled(f"Kzz{i}{j}")
                 if i == j:
@@ -564,29 +588,19 @@ class BodyContact:
                     KP = K.matMult(self.P[j])
                     add(Pi.transposeMatMult(KP), True)
                     KP.destroy()
-                K.destroy()
-        return C
+        return self._summed(terms)
 
     def coupling_matrix(self) -> PETSc.Mat:
         """C = K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi (exact sliding: _exact_coupling) with the rows and columns of the
-        Dirichlet dofs zeroed."""
+        Dirichlet dofs zeroed; K_uz and K_zz assembled into matrices made once, the three products summed in one
+        pass (_summed)."""
         self.update()
         if self.exact:
             C = self._exact_coupling()
-            C.zeroRowsColumns(self._dirichlet_rows(), diag=0.0)
-            return C
-        Kuz = fem_petsc.assemble_matrix(self._form("Kuz"))
-        Kuz.assemble()
-        Kzz = fem_petsc.assemble_matrix(self._form("Kzz"))
-        Kzz.assemble()
-        C1 = Kuz.matMult(self.Pi)
-        C = C1.copy()
-        C.axpy(1.0, C1.transpose(), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        C.axpy(1.0, Kzz.PtAP(self.Pi), structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-        fixed = self._dirichlet_rows()
-        C.zeroRowsColumns(fixed, diag=0.0)
-        for m in (Kuz, Kzz, C1):
-            m.destroy()
+        else:
+            C1 = self._assembled("Kuz").matMult(self.Pi)
+            C = self._summed([C1, C1.transpose(PETSc.Mat()), self._assembled("Kzz").PtAP(self.Pi)])
+        C.zeroRowsColumns(self._dirichlet_rows(), diag=0.0)
         return C
 
     def _dirichlet_rows(self) -> np.ndarray:
