@@ -91,3 +91,26 @@ def test_schur_variants_script() -> None:
         assert sum(full[nu][0]) < sum(counts), (full, preset)
         assert full[nu][1] / sum(full[nu][0]) > flops / sum(counts), (full, preset)
     assert scaled[0.4999][0] != preset[0.4999][0], (scaled, preset)
+
+
+@serial_only
+def test_memory_trace_script(tmp_path: Path) -> None:
+    """benchmarks/memory_trace.py (docs/solvers.md's per-stage memory table) on the 2 x 1 x 1 bar: every stage
+    is marked once per call in run order (build, scale check, solver, one solve per load step), VmHWM never
+    falls and bounds VmRSS at each mark, and the sampler's peak lies between the largest marked VmRSS and the
+    final VmHWM."""
+    env = {**environment(), "OPENBLAS_NUM_THREADS": "1"}
+    done = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "memory_trace.py"), "--n", "1",
+                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=300, env=env, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-2000:]
+    line = next(x for x in done.stdout.splitlines() if x.startswith("TRACE "))
+    trace = json.loads(line[len("TRACE "):])
+    assert trace["dofs"] > 0 and len(trace["ranks"]) == 1, trace
+    marks = trace["ranks"][0]["marks"]
+    stages = [m[1] for m in marks]
+    assert stages == ["after warm-up", "build start", "build end", "scale_check start", "scale_check end",
+                      "make_solver start", "make_solver end", "solve start", "solve end", "solve start",
+                      "solve end", "end"], stages
+    hwm = [m[3] for m in marks]
+    assert hwm == sorted(hwm) and all(m[3] >= m[2] > 50 for m in marks), marks
+    assert max(m[2] for m in marks) <= trace["ranks"][0]["sampled_peak"] <= hwm[-1] == trace["sum_hwm"], trace
