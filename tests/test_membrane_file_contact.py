@@ -6,8 +6,8 @@
   node (matched by coordinates) as the built-in run to 1e-12 of max |u|, the same contact force (to 1e-12) and
   penetration per step; the file's sheets get their open boundaries as borders (`lower_boundary`,
   `upper_boundary`, the same edges as the rims);
-- a contact naming a region the file does not have, sheets sharing nodes, triangles in no named surface: a
-  one-line ConfigError naming the key and the file, before any solve.
+- a contact naming a region the file does not have, sheets sharing nodes, triangles in no named surface, a
+  triangle in two, a file without named surfaces: a one-line ConfigError naming the key and the file, before any solve.
 """
 
 from __future__ import annotations
@@ -146,6 +146,17 @@ def test_bad_contacts_on_a_file(discs, shared_tmp: Path) -> None:  # noqa: ANN00
     with pytest.raises(ConfigError, match=r"^membrane\.file: .*stray\.msh: has 1 triangles in no named physical "
                                           r"surface \(named: lower, upper; name every physical surface"):
         _run(_document({"surface": "file", "file": str(shared_tmp / "stray.msh")}), shared_tmp / "refused")
+    # a triangle in both named surfaces (gmsh writes it twice): a repeated triangle
+    if MPI.COMM_WORLD.rank == 0:
+        mesh = meshio.read(path)
+        tags = [*mesh.cell_data["gmsh:physical"], np.array([2])]
+        meshio.Mesh(mesh.points, [*mesh.cells, ("triangle", mesh.cells[1].data[:1])],
+                    cell_data={"gmsh:physical": tags, "gmsh:geometrical": tags},
+                    field_data=mesh.field_data).write(shared_tmp / "twice.msh", file_format="gmsh22", binary=False)
+    MPI.COMM_WORLD.barrier()
+    with pytest.raises(ConfigError, match=r"^membrane\.file: .*twice\.msh: has 1 repeated triangles \(the same three "
+                                          r"points, e\.g\. triangle 0; a triangle in two physical surfaces\?\)$"):
+        _run(_document({"surface": "file", "file": str(shared_tmp / "twice.msh")}), shared_tmp / "refused")
     # a file of one (unnamed) sheet: no regions for a contact
     if MPI.COMM_WORLD.rank == 0:
         meshio.Mesh(discs.points, [("triangle", discs.cells)]).write(shared_tmp / "soup.obj")

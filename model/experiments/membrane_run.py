@@ -6,7 +6,9 @@
    (model.domain.distribute.build_domain); normals outward (octant) or +z (disc); or (surface = "file") the user's
    triangle surface read and checked on rank 0 before the output folder is made (meshes.surface_file: borders
    "boundary" and a .msh file's named lines, the triangles turned by ``orientation`` and checked consistent; a
-   bad file or border name is a ConfigError naming the key and the file), its normals the turned triangles';
+   .msh file's named physical surfaces are regions, each with the border "<region>_boundary", for [[contact]],
+   whose region names and disjointness are checked there; a bad file, border or region name is a ConfigError
+   naming the key and the file), its normals the turned triangles';
 2. model.problem.membrane.MembraneProblem with the law (forms.membrane.membrane_law) and the Dirichlet border,
    one model.problem.membrane_contact.ObstacleContact per [[obstacle]];
 3. the pressure path: model.solvers.membrane.inflate (a ramp or a list) or inflate_to_volume (growth by dp to a
