@@ -74,8 +74,9 @@ def _run(document: dict, out: Path) -> tuple[dict, np.ndarray, np.ndarray]:
 
 @pytest.fixture(scope="module")
 def discs():  # noqa: ANN201
+    """The built-in facing discs, meshed on rank 0 only (the files are written there)."""
     m = DISCS["membrane"]
-    return facing_discs(m["radius"], m["gap"], m["size"], m["upper_size"])
+    return facing_discs(m["radius"], m["gap"], m["size"], m["upper_size"]) if MPI.COMM_WORLD.rank == 0 else None
 
 
 def test_sheets_of_a_file_in_contact_as_the_builtin_discs(discs, shared_tmp: Path) -> None:  # noqa: ANN001
