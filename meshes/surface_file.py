@@ -1,20 +1,26 @@
 """A user's triangle surface from a file (any format meshio reads: OBJ, STL, PLY, VTU, gmsh .msh ...), checked.
 
     data = read_surface("patch.obj")              # a meshes.membrane.SurfaceMeshData, region "membrane"
+    data = read_surface("sheets.msh")             # regions: the .msh file's named physical surfaces
     cells = oriented_cells(data.points, data.cells, "file")   # or "outward", or a direction
 
 ``read_surface`` keeps the file's triangles (every triangle block), drops the points no triangle uses and merges
 points with identical coordinates (an STL repeats them per facet); the coordinates are taken as they are (in the
-configuration's length unit). Boundaries (edges, for Dirichlet conditions):
+configuration's length unit). Regions (cell tags 1, 2, ... in the order of the groups' physical tags): one,
+``membrane``, or the named gmsh physical surface groups of a .msh file (e.g. two sheets for membrane-membrane
+contact), which must then hold every triangle. Boundaries (edges, for Dirichlet conditions):
 
 * ``boundary``: the open boundary, every edge of exactly one triangle (found here; none on a closed surface);
+* ``<region>_boundary`` for each named physical surface: the open boundary of that region's triangles alone
+  (every edge of exactly one of them);
 * each named gmsh physical line group of a .msh file (its line elements, which must be edges of the triangles);
-  a group named "boundary" replaces the automatic one.
+  a group named "boundary" (or "<region>_boundary") replaces the automatic one.
 
 Refused with a one-line ValueError (the caller names the key and the file): a file meshio cannot read, no
 triangles, other 2D or 3D cells (quads, polygons, tetrahedra: a mixed mesh), a triangle with a repeated vertex
 or a zero area (|(x1 - x0) x (x2 - x0)| <= 1e-10 l^2, l its longest edge), a non-manifold edge (shared by more
-than two triangles), a named line that is not an edge of the surface.
+than two triangles), a named line that is not an edge of the surface, triangles in no named physical surface of a
+file that names some, a triangle in two of them.
 
 Orientation (``oriented_cells``): two triangles sharing an edge are consistently oriented when they run through it
 in opposite directions (their right-handed normals on the same side). ``"file"`` keeps the file's vertex order
@@ -80,6 +86,8 @@ def read_surface(path: str | Path) -> SurfaceMeshData:
     if points.shape[1] == 2:
         points = np.column_stack([points, np.zeros(len(points))])
     cells = np.concatenate([np.asarray(mesh.cells[i].data, dtype=np.int64) for i in blocks])
+    sheets, cell_tags = _named_surfaces(mesh, blocks)  # the file's named regions (none: one, "membrane")
+    regions = sheets or {"membrane": 1}
     lines = _named_lines(mesh)
     # the points the triangles use, identical coordinates merged, in the file's order
     used = np.unique(cells)
@@ -91,6 +99,11 @@ def read_surface(path: str | Path) -> SurfaceMeshData:
     new[used] = rank[np.asarray(inverse).reshape(-1)]
     points, cells = unique[order], new[cells]
     _check_triangles(points, cells)
+    _, first_of, repeats = np.unique(np.sort(cells, axis=1), axis=0, return_index=True, return_counts=True)
+    if np.any(repeats > 1):
+        i = int(first_of[np.flatnonzero(repeats > 1)[0]])
+        raise ValueError(f"has {int(np.sum(repeats[repeats > 1] - 1))} repeated triangles (the same three points, "
+                         f"e.g. triangle {i}; a triangle in two physical surfaces?)")
     edges, _, counts = _undirected(cells)
     if np.any(counts > 2):
         bad = edges[counts > 2][0]
@@ -99,6 +112,10 @@ def read_surface(path: str | Path) -> SurfaceMeshData:
     named: dict[str, np.ndarray] = {}
     if AUTO_BOUNDARY not in lines:
         named[AUTO_BOUNDARY] = edges[counts == 1]
+    for region, tag in sheets.items():
+        own, _, own_counts = _undirected(cells[cell_tags == tag])
+        if f"{region}_boundary" not in lines:
+            named[f"{region}_boundary"] = own[own_counts == 1]
     for name, line in lines.items():
         if np.any(new[line] < 0):
             raise ValueError(f"physical line {name!r} has points that are on no triangle")
@@ -111,8 +128,28 @@ def read_surface(path: str | Path) -> SurfaceMeshData:
     names = {name: k for k, name in enumerate(named, start=1)}
     facets = np.concatenate([named[n] for n in names]).astype(np.int64).reshape(-1, 2)
     facet_tags = np.concatenate([np.full(len(named[n]), names[n], dtype=np.int32) for n in names])
-    return SurfaceMeshData(points, cells, np.ones(len(cells), dtype=np.int32), facets, facet_tags,
-                           {"membrane": 1}, names)
+    return SurfaceMeshData(points, cells, cell_tags, facets, facet_tags, regions, names)
+
+
+def _named_surfaces(mesh, blocks: list[int]) -> tuple[dict[str, int], np.ndarray]:  # noqa: ANN001 - meshio.Mesh
+    """The regions and a tag per triangle (in the order of the triangle ``blocks``): a .msh file's named physical
+    surface groups, tagged 1, 2, ... in the order of their physical tags, or ({}, ones) without any."""
+    count = sum(len(mesh.cells[i].data) for i in blocks)
+    tags = mesh.cell_data.get("gmsh:physical")
+    names = {int(v[0]): name for name, v in (mesh.field_data or {}).items() if len(v) > 1 and int(v[1]) == 2} \
+        if tags is not None else {}
+    if not names:
+        return {}, np.ones(count, dtype=np.int32)
+    physical = np.concatenate([np.asarray(tags[i]).reshape(-1) for i in blocks]).astype(np.int64)
+    order = sorted(names)
+    regions = {names[t]: k for k, t in enumerate(order, start=1)}
+    cell_tags = np.zeros(count, dtype=np.int32)
+    for t in order:
+        cell_tags[physical == t] = regions[names[t]]
+    if np.any(cell_tags == 0):
+        raise ValueError(f"has {int(np.count_nonzero(cell_tags == 0))} triangles in no named physical surface "
+                         f"(named: {', '.join(regions)}; name every physical surface of the file or none)")
+    return regions, cell_tags
 
 
 def _rows_in(rows: np.ndarray, table: np.ndarray) -> np.ndarray:

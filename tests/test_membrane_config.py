@@ -245,7 +245,8 @@ def test_bad_contact_names_the_key(overrides: dict, message: str) -> None:
 def test_contact_needs_two_membranes() -> None:
     """[[contact]] on a surface of one membrane (the balloon), gap on the octant."""
     with pytest.raises(ConfigError, match=r"^contact\[0\]\.surface: sphere_octant has no region 'lower' \(no "
-                                          r"regions: membrane-membrane contact needs surface = 'facing_discs'\)$"):
+                                          r"regions: membrane-membrane contact needs surface = 'facing_discs' or "
+                                          r"a \.msh file's named physical surfaces\)$"):
         load_membrane(BALLOON, {"contact": [_PAIR]})
     with pytest.raises(ConfigError, match=r"^membrane\.gap: only applies to surface = 'facing_discs', not "):
         load_membrane(BALLOON, {"membrane.gap": 0.5})

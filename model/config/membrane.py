@@ -14,7 +14,8 @@ pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig):
                    touches the obstacles (model.solvers.membrane.inflate / inflate_to_volume)
     [[obstacle]]   rigid obstacles (plane, sphere, capsule: the keys of [[bone]] shapes) with a penalty
                    (model.problem.membrane_contact.ObstacleContact)
-    [[contact]]    membrane-membrane contact between two regions of the surface (facing_discs: lower, upper),
+    [[contact]]    membrane-membrane contact between two regions of the surface (facing_discs: lower, upper; a
+                   .msh file: its named physical surfaces),
                    penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact)
     [extrusion]    before [inflation] (surface = "disc"): the disc extruded, inflated without contact to a first
                    volume and smoothed into a new rest shape (the thesis' two phases)
@@ -61,8 +62,9 @@ SURFACES: dict[str, dict[str, Any]] = {
     "disc": {"boundaries": ("rim",), "fixed": {"rim": [0, 1, 2]}},
     "facing_discs": {"boundaries": ("lower_rim", "upper_rim"), "regions": ("lower", "upper"),
                      "fixed": {"lower_rim": [0, 1, 2], "upper_rim": [0, 1, 2]}},
-    # a user's file (meshes.surface_file): "boundary" the open edges, plus a .msh file's named physical lines
-    "file": {"boundaries": None, "fixed": {"boundary": [0, 1, 2]}},
+    # a user's file (meshes.surface_file): "boundary" the open edges, plus a .msh file's named physical lines; its
+    # regions (a .msh file's named physical surfaces, "<region>_boundary" their open edges) checked when read
+    "file": {"boundaries": None, "regions": None, "fixed": {"boundary": [0, 1, 2]}},
 }
 #: the surfaces' own keys (others refuse them)
 SURFACE_KEYS = {"bump": ("disc", "facing_discs", "file"), "gap": ("facing_discs",), "upper_size": ("facing_discs",),
@@ -151,9 +153,10 @@ class MembraneSection(Section):
         return self
 
     @property
-    def regions(self) -> tuple[str, ...]:
-        """The surface's named membranes (cell regions), for [[contact]]."""
-        return tuple(SURFACES[self.surface].get("regions", ()))
+    def regions(self) -> tuple[str, ...] | None:
+        """The surface's named membranes (cell regions), for [[contact]]; None for a file (known when read)."""
+        regions = SURFACES[self.surface].get("regions", ())
+        return None if regions is None else tuple(regions)
 
     @property
     def border(self) -> dict[str, tuple[int, ...]]:
@@ -266,13 +269,15 @@ class ObstacleSection(Section):
 
 class ContactSection(Section):
     """[[contact]]: penalty contact between two membranes of the surface (two regions, e.g. facing_discs' lower
-    and upper): the ``surface`` region's nodes stay on the side of the ``master`` region its normal points to
-    (model.problem.membrane_contact.MembranePairContact; one pass: pick the finer mesh as ``surface``;
-    ``two_pass``: also the master's nodes against the surface's triangles, model.problem.membrane_contact
-    .pair_contacts)."""
+    and upper, or two named physical surfaces of a .msh file, sharing no node): the ``surface`` region's nodes
+    stay on the side of the ``master`` region its normal points to (model.problem.membrane_contact
+    .MembranePairContact; one pass: pick the finer mesh as ``surface``; ``two_pass``: also the master's nodes
+    against the surface's triangles, model.problem.membrane_contact.pair_contacts)."""
 
     name: Name | None = key("a name for the summary (default: \"<surface>-<master>\")", default=None)
-    surface: Name = key("the slave region: its nodes are checked against the master's triangles")
+    surface: Name = key("the slave region: its nodes are checked against the master's triangles (facing_discs: "
+                        "lower or upper; surface = \"file\": a named physical surface of the .msh file, checked "
+                        "when it is read)")
     master: Name = key("the master region: its deformed triangles are the contact surface")
     penalty: Positive = key("the penalty stiffness k, per unit reference area and unit penetration (g counts both "
                             "membranes' penetrations)", "Pa/m (stress per length)")
@@ -393,12 +398,13 @@ class MembraneRunConfig(Section):
         if self.inflation.freeze_on_contact and not (self.obstacles or self.contacts):
             fail("needs an [[obstacle]] or a [[contact]] to touch", "inflation", "freeze_on_contact")
         regions = self.membrane.regions
-        for i, contact in enumerate(self.contacts):
+        for i, contact in enumerate(self.contacts if regions is not None else ()):  # a file's: when read
             for k in ("surface", "master"):
                 name = getattr(contact, k)
                 if name not in regions:
                     known = f"regions: {', '.join(regions)}" if regions else \
-                        "no regions: membrane-membrane contact needs surface = 'facing_discs'"
+                        "no regions: membrane-membrane contact needs surface = 'facing_discs' or a .msh file's " \
+                        "named physical surfaces"
                     fail(f"{self.membrane.surface} has no region {name!r} ({known})", "contact", i, k)
         if self.extrusion is not None:
             if self.membrane.surface != "disc":

@@ -6,7 +6,9 @@
    (model.domain.distribute.build_domain); normals outward (octant) or +z (disc); or (surface = "file") the user's
    triangle surface read and checked on rank 0 before the output folder is made (meshes.surface_file: borders
    "boundary" and a .msh file's named lines, the triangles turned by ``orientation`` and checked consistent; a
-   bad file or border name is a ConfigError naming the key and the file), its normals the turned triangles';
+   .msh file's named physical surfaces are regions, each with the border "<region>_boundary", for [[contact]],
+   whose region names and disjointness are checked there; a bad file, border or region name is a ConfigError
+   naming the key and the file), its normals the turned triangles';
 2. model.problem.membrane.MembraneProblem with the law (forms.membrane.membrane_law) and the Dirichlet border,
    one model.problem.membrane_contact.ObstacleContact per [[obstacle]];
 3. the pressure path: model.solvers.membrane.inflate (a ramp or a list) or inflate_to_volume (growth by dp to a
@@ -246,17 +248,54 @@ def _surface(config: MembraneRunConfig) -> SurfaceMeshData:
 
 @dataclass(frozen=True)
 class _FileSurface:
-    """surface = "file": the checked surface with its oriented triangles (rank 0, else None) and the starting
-    bump's centre c and radius R (every rank)."""
+    """surface = "file": the checked surface with its oriented triangles (rank 0, else None), the starting bump's
+    centre c and radius R (every rank; of the whole surface) and, for a file of several named regions, each
+    region's (rank 0, else None): (region, c, R)."""
 
     data: SurfaceMeshData | None
     centre: tuple[float, float, float]
     radius: float
+    bumps: tuple[tuple[str, np.ndarray, float], ...] | None = None
 
 
-def _read_file_surface(config: MembraneRunConfig) -> tuple[SurfaceMeshData, tuple[float, float, float], float]:
+def _bump_centre(config: MembraneRunConfig, nodes: np.ndarray, where: str) -> tuple[np.ndarray, float]:
+    """The bump's c (``centre`` or the middle of ``nodes``' bounding box) and R (``radius`` or the largest distance
+    of a node from c); ConfigError when R = 0."""
+    m = config.membrane
+    centre = (np.asarray(m.centre, dtype=np.float64) if m.centre is not None
+              else 0.5 * (nodes.min(axis=0) + nodes.max(axis=0)))
+    radius = float(m.radius) if "radius" in m.model_fields_set else \
+        float(np.sqrt(np.max(np.sum((nodes - centre) ** 2, axis=1))))
+    if not radius > 0.0:
+        raise ConfigError(f"membrane.radius: the fixed nodes of {where} are all at the centre: give radius")
+    return centre, radius
+
+
+def _check_contacts(config: MembraneRunConfig, data: SurfaceMeshData) -> None:
+    """[[contact]] on a file: both regions named in it (a .msh file's physical surfaces), sharing no node (a node of
+    both would be its own contact partner); ConfigError naming the key and the file."""
+    m = config.membrane
+    for i, contact in enumerate(config.contacts):
+        for k in ("surface", "master"):
+            name = getattr(contact, k)
+            if name not in data.region_names:
+                hint = "" if len(data.region_names) > 1 else \
+                    "; name the sheets as physical surfaces of a .msh file"
+                raise ConfigError(f"contact[{i}].{k}: {m.file} has no region {name!r} (regions: "
+                                  f"{', '.join(data.region_names)}{hint})")
+        slave, master = (np.unique(data.region_cells(getattr(contact, k))) for k in ("surface", "master"))
+        shared = np.intersect1d(slave, master)
+        if len(shared):
+            raise ConfigError(f"contact[{i}]: {m.file}: regions {contact.surface!r} and {contact.master!r} share "
+                              f"{len(shared)} nodes, e.g. the point {data.points[shared[0]].tolist()} (membrane-"
+                              "membrane contact needs two separate sheets: a shared node would be its own partner)")
+
+
+def _read_file_surface(config: MembraneRunConfig) -> tuple[SurfaceMeshData, tuple[float, float, float], float,
+                                                            tuple[tuple[str, np.ndarray, float], ...] | None]:
     """Rank 0: read and check the file (meshes.surface_file), orient its triangles, check the Dirichlet border's
-    names, and find the bump's c and R; ConfigError naming the key and the file."""
+    and the contacts' names, and find the bump's c and R (of the whole surface and, for several regions, of each);
+    ConfigError naming the key and the file."""
     m = config.membrane
     try:
         data = read_surface(m.file)
@@ -283,40 +322,50 @@ def _read_file_surface(config: MembraneRunConfig) -> tuple[SurfaceMeshData, tupl
             raise ConfigError(f"{key}: {m.file} has no edges on {name!r} (a closed surface has no open boundary: "
                               "give the Dirichlet border)")
         fixed.append(edges.reshape(-1))
-    nodes = data.points[np.unique(np.concatenate(fixed))] if fixed else data.points
-    centre = (np.asarray(m.centre, dtype=np.float64) if m.centre is not None
-              else 0.5 * (nodes.min(axis=0) + nodes.max(axis=0)))
-    radius = float(m.radius) if "radius" in m.model_fields_set else \
-        float(np.sqrt(np.max(np.sum((nodes - centre) ** 2, axis=1))))
-    if not radius > 0.0:
-        raise ConfigError(f"membrane.radius: the fixed nodes of {m.file} are all at the centre: give radius")
-    return data, tuple(float(c) for c in centre), radius
+    _check_contacts(config, data)
+    fixed_nodes = np.unique(np.concatenate(fixed)) if fixed else np.arange(len(data.points))
+    centre, radius = _bump_centre(config, data.points[fixed_nodes], str(m.file))
+    bumps = None
+    if len(data.region_names) > 1:  # each sheet its own paraboloid (c, R from its fixed nodes, or all its nodes)
+        bumps = []
+        for region in data.region_names:
+            nodes = np.unique(data.region_cells(region))
+            held = np.intersect1d(nodes, fixed_nodes)
+            c, r = _bump_centre(config, data.points[held if len(held) else nodes], f"region {region!r} of {m.file}")
+            bumps.append((region, c, r))
+        bumps = tuple(bumps)
+    return data, tuple(float(c) for c in centre), radius, bumps
 
 
 def _file_surface(config: MembraneRunConfig, comm: MPI.Comm) -> _FileSurface:
     """surface = "file" (_read_file_surface on rank 0); a ConfigError there is raised on every rank. Collective."""
-    data, found, error = None, None, None
+    data, found, bumps, error = None, None, None, None
     if comm.rank == 0:
         try:
-            data, *rest = _read_file_surface(config)
+            data, *rest, bumps = _read_file_surface(config)
             found = tuple(rest)
         except ConfigError as err:
             error = str(err)
     found, error = comm.bcast((found, error))
     if error is not None:
         raise ConfigError(error)
-    return _FileSurface(data, *found)
+    return _FileSurface(data, *found, bumps)
 
 
 def _file_bump(config: MembraneRunConfig, surface: _FileSurface, problem: MembraneProblem, comm: MPI.Comm) -> None:
     """surface = "file": u = bump R max(0, 1 - |X - c|^2 / R^2) N_vertex, N_vertex the oriented vertex normals
-    (meshes.membrane.vertex_normals). Collective."""
+    (meshes.membrane.vertex_normals); a file of several regions: on each region's nodes with its c and R.
+    Collective."""
     values = None
     if comm.rank == 0:
-        data, c, r = surface.data, np.asarray(surface.centre), surface.radius
-        bump = config.membrane.bump * r
-        phi = np.maximum(1 - np.sum((data.points - c) ** 2, axis=1) / r**2, 0.0)
-        values = bump * phi[:, None] * vertex_normals(data.points, data.cells)
+        data = surface.data
+        normals = vertex_normals(data.points, data.cells)
+        bumps = surface.bumps or (("", np.asarray(surface.centre), surface.radius),)
+        values = np.zeros_like(data.points)
+        for region, c, r in bumps:
+            nodes = np.unique(data.region_cells(region)) if region else np.arange(len(data.points))
+            phi = np.maximum(1 - np.sum((data.points[nodes] - c) ** 2, axis=1) / r**2, 0.0)
+            values[nodes] = config.membrane.bump * r * phi[:, None] * normals[nodes]
     set_nodal_displacement(problem, comm.bcast(values))
 
 
@@ -402,6 +451,8 @@ def _step_record(step: InflationStep, problem: MembraneProblem, config: Membrane
         record["balloon_pressure"] = float(balloon_pressure(law, m.radius, stretch))
     elif m.surface == "file":
         record["max_displacement"] = _largest_displacement(problem)
+        if pairs:
+            record["pairs"] = [_pair_record(pair) for pair in pairs]
     elif m.surface == "facing_discs":
         record["centre_deflection"] = problem.max_component(2)  # the lower disc's (towards +z)
         record["pairs"] = [_pair_record(pair) for pair in pairs]
