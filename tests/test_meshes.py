@@ -443,6 +443,21 @@ def test_existing_gmsh_session_is_preserved() -> None:
     assert not gmsh_is_initialized()
 
 
+def test_gmsh_state_is_known_without_calling_gmsh_after_finalize(monkeypatch: pytest.MonkeyPatch) -> None:
+    """After a session gmsh is finalised, and gmsh_is_initialized() answers without an API call: on gmsh 4.8 a call
+    after gmsh.finalize() reads freed memory, and gmsh.model.list() there (the old test) at times ended the
+    process with exit(1) from Msg::Error (General.AbortOnError read as 2)."""
+    mesh = cylinder(size=0.5)
+    assert mesh.num_cells > 0
+
+    def no_call(*args: object) -> None:
+        raise AssertionError("a gmsh API call after gmsh.finalize()")
+
+    monkeypatch.setattr(gmsh.model, "list", no_call)
+    monkeypatch.setattr(gmsh.model, "getCurrent", no_call)
+    assert not gmsh_is_initialized()
+
+
 def test_meshdata_validation() -> None:
     with pytest.raises(ValueError, match="cells"):
         MeshData(np.zeros((4, 3)), np.zeros((1, 3)), np.zeros(1), np.zeros((0, 3)), np.zeros(0))
