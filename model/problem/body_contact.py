@@ -620,6 +620,18 @@ class BodyContact:
         A.axpy(1.0, C, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         C.destroy()
 
+    def destroy(self) -> None:
+        """Free the pair's PETSc matrices: Pi (exact sliding: the P_i) and the K forms' matrices (_assembled).
+        Under MPI petsc4py does not destroy a parallel object the garbage collector frees: it waits on its
+        communicator's garbage list for a collective PETSc.garbage_cleanup, so without this each problem of a
+        study left them allocated. They are made again when needed (the next pairing, the next assembly): the
+        pair stays usable (model.solvers.newton.NewtonSolver.destroy calls this). Collective."""
+        for M in [self.Pi, *self.P, *self._matrices.values()]:
+            if M is not None:
+                M.destroy()
+        self.Pi, self.P, self._matrices = None, [], {}
+        self._stamp = None  # pair again (and make Pi) at the next update
+
     # --- the augmented Lagrangian (model.solvers.contact.UzawaSolver drives it) -----------------------------
     def nodal_gaps(self) -> np.ndarray:
         """g at the owned slave nodes, at the current solution (paired again if it changed). Collective."""
