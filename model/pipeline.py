@@ -66,7 +66,7 @@ from model.problem import ElasticityProblem
 from model.problem.measurements import Volumes, reactions
 from model.solvers import linear
 from model.solvers.loadstepping import continuation, step_loads
-from model.solvers.newton import NewtonSolver
+from model.solvers.newton import NewtonSolver, free_garbage
 
 log = logging.getLogger(__name__)
 
@@ -725,6 +725,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         solver.destroy()
         if dynamics is not None:
             dynamics.destroy()
+        free_garbage(msh.comm)
         if comm.rank == 0:
             log.warning("%s: stopped after %d completed steps; summary.json says \"interrupted\"; continue with "
                         "--restart %s", err, writer.count, directory)
@@ -744,6 +745,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     solver.destroy()
     if dynamics is not None:
         dynamics.destroy()
+    free_garbage(msh.comm)  # with the mesh alive: the parallel PETSc objects the collector freed (newton.free_garbage)
     if not ok:
         raise SolveFailed(f"{ok.reason}; results up to {what} {problem.time:.6g} are in {directory}")
     return summary

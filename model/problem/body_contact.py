@@ -383,11 +383,13 @@ class BodyContact:
                 np.concatenate([p[2] for p in parts]))
 
     # --- the pairing -------------------------------------------------------------------------------------
-    def update(self) -> None:
+    def update(self, matrices: bool = False) -> None:
         """Pair every owned slave node with its closest master point at the current solution; set X*, n, z and
-        the interpolation matrix Pi. Collective."""
+        the interpolation matrix Pi. ``matrices``: also pair again when Pi (the P_i) was destroyed (destroy) at
+        the same solution (the residual and Jacobian need it; the gaps and reports do not). Collective."""
         current = self.problem.solution.x.array
-        changed = self._stamp is None or not np.array_equal(self._stamp, current)
+        unmade = matrices and ((not self.P) if self.exact else self.Pi is None)
+        changed = self._stamp is None or unmade or not np.array_equal(self._stamp, current)
         if not self.comm.allreduce(changed, op=MPI.LOR):  # decided together: the pairing is collective
             return
         X_tri, x_tri, g_tri = self._gather_master()
@@ -507,7 +509,7 @@ class BodyContact:
     def add_residual(self, b: PETSc.Vec) -> None:
         """b += Pi^T dPi_c/dz (exact sliding: sum_i P_i^T dPi_c/dz_i; b: the assembled residual, reverse-scattered).
         Collective."""
-        self.update()
+        self.update(matrices=True)
         terms = [(f"Rz{i}", P) for i, P in enumerate(self.P)] if self.exact else [("Rz", self.Pi)]
         for key, P in terms:
             Rz = fem_petsc.assemble_vector(self._form(key))
@@ -523,7 +525,7 @@ class BodyContact:
     def contact_residual(self) -> PETSc.Vec:
         """The pair's own nodal forces on the body's dofs, r = dPi_c/du + Pi^T dPi_c/dz at the current solution (minus
         the contact force on each node; owned entries summed over the ranks). Collective."""
-        self.update()
+        self.update(matrices=True)
         if "Ru" not in self._ufl:
             self._ufl["Ru"] = ufl.derivative(self.energy, self.problem.solution, ufl.TestFunction(self.V))
         r = fem_petsc.assemble_vector(self._form("Ru"))
@@ -594,7 +596,7 @@ class BodyContact:
         """C = K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi (exact sliding: _exact_coupling) with the rows and columns of the
         Dirichlet dofs zeroed; K_uz and K_zz assembled into matrices made once, the three products summed in one
         pass (_summed)."""
-        self.update()
+        self.update(matrices=True)
         if self.exact:
             C = self._exact_coupling()
         else:
@@ -619,6 +621,17 @@ class BodyContact:
         C = self.coupling_matrix()
         A.axpy(1.0, C, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
         C.destroy()
+
+    def destroy(self) -> None:
+        """Free the pair's PETSc matrices: Pi (exact sliding: the P_i) and the K forms' matrices (_assembled).
+        Under MPI petsc4py does not destroy a parallel object the garbage collector frees: it waits on its
+        communicator's garbage list for a collective PETSc.garbage_cleanup, so without this each problem of a
+        study left them allocated. They are made again when needed (the next pairing, the next assembly): the
+        pair stays usable (model.solvers.newton.NewtonSolver.destroy calls this). Collective."""
+        for M in [self.Pi, *self.P, *self._matrices.values()]:
+            if M is not None:
+                M.destroy()
+        self.Pi, self.P, self._matrices = None, [], {}  # update pairs again (and makes them) before they are used
 
     # --- the augmented Lagrangian (model.solvers.contact.UzawaSolver drives it) -----------------------------
     def nodal_gaps(self) -> np.ndarray:

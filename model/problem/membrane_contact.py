@@ -386,6 +386,15 @@ class MembranePairContact(_NodalContact):
             self._compiled[key] = fem.form(self._ufl[key])
         return self._compiled[key]
 
+    def destroy(self) -> None:
+        """Free the PETSc objects the pair made once (K_uz, K_zz, dPi_c/dz; made again when needed): a parallel
+        object the collector frees waits on its communicator's garbage list (model.solvers.newton.free_garbage).
+        model.solvers.membrane.CoupledNewton.destroy calls this. Collective."""
+        for obj in [*self._matrices.values(), self._vector]:
+            if obj is not None:
+                obj.destroy()
+        self._matrices, self._vector = {}, None
+
     def _master_force(self, pair: bool = True) -> np.ndarray:
         """Pi^T dPi_c/dz at the owned dofs: each rank's owned rows of dPi_c/dz through its rows of the whole Pi,
         summed over the ranks (one reduction). ``pair``: pair again if u changed (else the caller has).

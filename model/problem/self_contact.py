@@ -166,9 +166,9 @@ class SelfContact(BodyContact):
         return (f"the self-contact {self.name}: backtracking on the total potential stalls with the lagged "
                 "pairing in the tangent (full Newton steps)")
 
-    def update(self) -> None:
+    def update(self, matrices: bool = False) -> None:
         """BodyContact.update; the augmented multiplier of a node not paired is reset to 0. Collective."""
-        super().update()
+        super().update(matrices)
         if self.augmented:
             lam = self.multiplier.x.array
             lam[self.slave_q[~self.paired]] = 0.0

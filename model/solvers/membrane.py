@@ -96,6 +96,11 @@ class CoupledNewton(FormNewton):
             c.add_jacobian(A, self.bcs)
         A.assemble()
 
+    def destroy(self) -> None:
+        super().destroy()
+        for c in self.couplings:  # their matrices and vector (MembranePairContact.destroy: made again when needed)
+            c.destroy()
+
 
 def membrane_newton(problem: MembraneProblem, options: dict | None = None) -> FormNewton:
     """A FormNewton on the problem's residual (Newton with a backtracking line search by default); a

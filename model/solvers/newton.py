@@ -531,3 +531,19 @@ class NewtonSolver:
             self.near_null_space.destroy()
         if self.fields is not None:
             self.fields.destroy()
+        for coupling in self.problem.couplings:  # their matrices (BodyContact.destroy: made again when needed)
+            coupling.destroy()
+
+
+def free_garbage(comm: MPI.Comm) -> None:
+    """Collect Python's garbage, then destroy the parallel PETSc objects waiting on comm's garbage list.
+
+    petsc4py (3.18 on) does not destroy an object of a communicator of more than one rank when the collector
+    frees it (the ranks may free it at different times): it goes onto the communicator's list and is destroyed by
+    the collective PETSc.garbage_cleanup. Give the mesh's communicator (dolfinx duplicates the one it was given)
+    while the mesh lives: a list whose communicator is freed stays allocated. Collective."""
+    import gc
+
+    gc.collect()
+    PETSc.garbage_cleanup(comm)
+
