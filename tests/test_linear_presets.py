@@ -146,6 +146,39 @@ def test_fieldsplit_options_must_name_u_or_p(shared_tmp: Path, options: dict[str
     assert not (shared_tmp / "summary.json").exists()
 
 
+def test_schur_upper_solve_is_accepted_and_used(shared_tmp: Path) -> None:
+    """PCFieldSplit's own prefix for the second u solve of the full factorisation, fieldsplit_p_upper_ (named after
+    the Schur complement's split, p): the option check accepts it, PETSc creates the separate solver and reads its
+    options (none left unused), and the run takes more iterations with Jacobi there than with the V-cycle the
+    full factorisation otherwise applies twice (a weaker upper solve in effect)."""
+    full = {"pc_fieldsplit_schur_fact_type": "full"}
+    upper = {**full, "fieldsplit_p_upper_ksp_type": "preonly", "fieldsplit_p_upper_pc_type": "jacobi"}
+    summaries = {}
+    for name, options in (("full", full), ("upper", upper)):
+        summary = run_raw(quiet(bar(2, 0.4999), "iterative", options, steps=1), shared_tmp / name)
+        assert summary["status"] == "completed"
+        assert "unused_petsc_options" not in summary, summary["unused_petsc_options"]
+        assert {k: summary["solver"]["petsc_options"][k] for k in options} == options
+        summaries[name] = summary
+    assert sum(s["linear_iterations"] for s in summaries["upper"]["steps"]) > \
+        sum(s["linear_iterations"] for s in summaries["full"]["steps"]), summaries
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"fieldsplit_u_upper_ksp_type": "preonly"}, r"PETSc names the Schur.*'s upper solve.*fieldsplit_p_upper_"),
+    ({"fieldsplit_u_inner_pc_type": "jacobi"}, r"PETSc names the Schur.*'s inner solve.*fieldsplit_p_inner_"),
+    ({"fieldsplit_x_upper_ksp_type": "preonly"}, r"the fields of the mixed formulation are named u and p.*not 'x'"),
+])
+def test_schur_sub_solvers_need_the_schur_split(shared_tmp: Path, options: dict[str, Any], message: str) -> None:
+    """fieldsplit_u_upper_... PETSc never reads (it names the upper and inner solvers after the second split);
+    a field that does not exist stays a ConfigError with the sub-solver prefixes too. Before any solve."""
+    raw = quiet(bar(1, 0.3), "iterative", options, steps=1)
+    key = next(iter(options))
+    with pytest.raises(ConfigError, match=rf"^solver\.petsc_options\.{key}: {message}"):
+        run_raw(raw, shared_tmp)
+    assert not (shared_tmp / "summary.json").exists()
+
+
 def test_fields_are_not_redefined(shared_tmp: Path) -> None:
     raw = quiet(example("cook"), "iterative", {"pc_fieldsplit_0_fields": "0,1,2"})
     raw["mesh"]["cells"] = 2

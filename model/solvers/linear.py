@@ -109,7 +109,13 @@ ITERATIVE_MIXED: Options = {
 
 #: a Krylov method inside the fieldsplit (anything but preonly makes the preconditioner nonlinear)
 _INNER_KRYLOV = re.compile(r"^fieldsplit_.+?_ksp_type$")
-_FIELDSPLIT_NAME = re.compile(r"^fieldsplit_(.+?)_(ksp|pc|mat|mg|sub|snes)_")
+_FIELDSPLIT_NAME = re.compile(r"^fieldsplit_(.+?)(?:_(upper|inner))?_(ksp|pc|mat|mg|sub|snes)_")
+#: the Schur factorisation's own A00 solvers: PCFieldSplit (3.18 to 3.24, fieldsplit.c, PCSetUp_FieldSplit) reads
+#: ``fieldsplit_<S>_upper_`` (the second u solve of fact_type full / upper) and ``fieldsplit_<S>_inner_`` (the A00
+#: solve inside the Schur complement's application) under the name S of the *second* split, the Schur
+#: complement's: here p. It creates them only when an option with that prefix is in the database at its first
+#: set-up; ``fieldsplit_u_upper_...`` it never reads.
+SCHUR_SPLIT = FIELDS[1]
 #: PCFieldSplit's own field definitions by component or block size (the solver gives u and p as index sets)
 _FIELD_DEFINITIONS = re.compile(r"^pc_fieldsplit_(\d+_fields|block_size|detect_saddle_point)$")
 
@@ -149,13 +155,20 @@ def shear_modulus(law: Any) -> float:
 
 
 def check_options(problem: ElasticityProblem, options: Options, key: str = "solver.petsc_options") -> None:
-    """ConfigError for fieldsplit options PETSc could not apply here: fields other than u and p, or a fieldsplit
-    preconditioner on the displacement formulation (one field)."""
+    """ConfigError for fieldsplit options PETSc could not apply here: fields other than u and p, the Schur
+    factorisation's A00 sub-solvers (``_upper_``, ``_inner_``) under another name than the Schur split's
+    (``fieldsplit_p_upper_...``, ``fieldsplit_p_inner_...``; SCHUR_SPLIT), or a fieldsplit preconditioner on the
+    displacement formulation (one field)."""
     for name in options:
         match = _FIELDSPLIT_NAME.match(name)
         if match and match.group(1) not in FIELDS:
             raise ConfigError(f"{key}.{name}: the fields of the mixed formulation are named u and p "
                               f"(fieldsplit_u_..., fieldsplit_p_...), not {match.group(1)!r}")
+        if match and match.group(2) and match.group(1) != SCHUR_SPLIT:
+            qualifier = match.group(2)
+            raise ConfigError(f"{key}.{name}: PETSc names the Schur factorisation's {qualifier} solve of the u block "
+                              f"after the Schur complement's split: fieldsplit_{SCHUR_SPLIT}_{qualifier}_..., not "
+                              f"fieldsplit_{match.group(1)}_{qualifier}_...")
         if _FIELD_DEFINITIONS.match(name):
             raise ConfigError(f"{key}.{name}: the solver defines the fields itself (index sets u and p of the "
                               "mixed formulation); leave out PETSc's field definitions")
