@@ -14,20 +14,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from meshes.data import MeshData
+from meshes.topology import boundary_facets
 
 
 def moved(data: MeshData, offset: Sequence[float]) -> MeshData:
     """The mesh translated by ``offset``."""
     return MeshData(data.points + np.asarray(offset, dtype=float), data.cells, data.cell_tags, data.facets,
                     data.facet_tags, dict(data.region_names), dict(data.boundary_names), data.nodes)
-
-
-def _boundary_triangles(cells: np.ndarray) -> np.ndarray:
-    """The triangles of the tetrahedra's faces that belong to one tetrahedron only."""
-    faces = np.vstack([cells[:, [0, 1, 2]], cells[:, [0, 1, 3]], cells[:, [0, 2, 3]], cells[:, [1, 2, 3]]])
-    key = np.sort(faces, axis=1)
-    _, index, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
-    return faces[index[counts == 1]]
 
 
 def combine(bodies: Mapping[str, MeshData]) -> MeshData:
@@ -58,7 +51,7 @@ def combine(bodies: Mapping[str, MeshData]) -> MeshData:
             chosen = data.facets[data.facet_tags == tag]
             facets.append(chosen + offset)
             facet_tags.append(np.full(len(chosen), new, dtype=np.int32))
-        surface = _boundary_triangles(data.cells)
+        surface = boundary_facets(data.cells)
         if f"{name}_surface" in boundaries:
             raise ValueError(f"{name}: a boundary named 'surface' would clash with {name}_surface (the whole "
                              "boundary): rename it")

@@ -37,6 +37,7 @@ from meshes._validate import ParameterError, positive_float
 from meshes.arm_segment import GAP_FACES, _check, arm_segment_options, build_arm_segment_model, check_turn_elements
 from meshes.combine import combine
 from meshes.data import MeshData, from_gmsh_model
+from meshes.topology import boundary_facets
 
 __all__ = ["GAP_BOUNDARY", "GAP_FACES", "LAYERED_ARM_BODIES", "LAYERED_ARM_FACES", "LAYERED_ARM_REGIONS", "layered_arm",
            "layered_arm_meshes", "TOUCHING_FACES", "split_bodies"]
@@ -65,13 +66,6 @@ def _triangle_keys(triangles: np.ndarray) -> np.ndarray:
     return np.sort(np.asarray(triangles, dtype=np.int64), axis=1)
 
 
-def _boundary(cells: np.ndarray) -> np.ndarray:
-    """The faces of the tetrahedra that belong to one of them only."""
-    faces = np.vstack([cells[:, [0, 1, 2]], cells[:, [0, 1, 3]], cells[:, [0, 2, 3]], cells[:, [1, 2, 3]]])
-    _, index, counts = np.unique(_triangle_keys(faces), axis=0, return_index=True, return_counts=True)
-    return faces[index[counts == 1]]
-
-
 def _member(triangles: np.ndarray, of: np.ndarray) -> np.ndarray:
     """Mask of the rows of ``triangles`` that are (as vertex sets) rows of ``of``."""
     if len(triangles) == 0 or len(of) == 0:
@@ -95,7 +89,7 @@ def split_bodies(data: MeshData) -> dict[str, MeshData]:
     tags = {name: data.region_names[name] for names in LAYERED_ARM_BODIES.values() for name in names}
     body_cells = {body: np.isin(data.cell_tags, [tags[r] for r in regions])
                   for body, regions in LAYERED_ARM_BODIES.items()}
-    boundary = {body: _boundary(data.cells[mask]) for body, mask in body_cells.items()}
+    boundary = {body: boundary_facets(data.cells[mask]) for body, mask in body_cells.items()}
 
     def named(name: str) -> np.ndarray:
         return data.facets[data.facet_tags == data.boundary_names[name]]

@@ -41,6 +41,7 @@ CI, OUT, plt = start("contact_bodies")
 
 import meshio  # noqa: E402
 
+from meshes.topology import boundary_facets  # noqa: E402
 from model.config import parse  # noqa: E402
 from model.pipeline import run  # noqa: E402
 
@@ -70,9 +71,7 @@ if plt is not None:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     tets = vtu.cells_dict["tetra"]
-    faces = np.sort(tets[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3), axis=1)
-    unique, counts = np.unique(faces, axis=0, return_counts=True)
-    boundary = unique[counts == 1]
+    boundary = boundary_facets(tets)
     scale = 5.0  # displacements magnified
     moved = vtu.points + scale * vtu.point_data["u"]
     upper_nodes = np.zeros(len(vtu.points), dtype=bool)  # the bodies share no node: the upper one's cells' nodes
@@ -185,9 +184,7 @@ assert abs(reactions["zmax"][2] + reactions["zmin"][2]) < 1e-6 * abs(reactions["
 vtu = meshio.read(sorted((OUT / "slot").glob("step_*.vtu"))[-1])
 if plt is not None:
     tets = vtu.cells_dict["tetra"]
-    faces = np.sort(tets[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3), axis=1)
-    unique, counts = np.unique(faces, axis=0, return_counts=True)
-    boundary = unique[counts == 1]
+    boundary = boundary_facets(tets)
     front = boundary[np.all(np.abs(vtu.points[boundary, 1]) < 1e-12, axis=1)]  # the face y = 0
     fig, axes = plt.subplots(1, 2, figsize=(13, 4))
     for ax, (points, title) in zip(axes, ((vtu.points, "at rest"),

@@ -34,6 +34,7 @@ from _setup import start  # noqa: E402
 
 CI, OUT, plt = start("render_mesh")
 
+from meshes.topology import boundary_facets  # noqa: E402
 from model.config import parse  # noqa: E402
 from model.pipeline import run  # noqa: E402
 
@@ -61,9 +62,7 @@ assert abs(turn.mean() - 90.0) < 1e-6 and np.ptp(turn) < 1e-6
 vtu = sorted((OUT / "run").glob("step_*.vtu"))[-1]
 body = meshio.read(vtu)
 tets = body.cells_dict["tetra"]
-faces = np.sort(np.vstack([tets[:, [0, 1, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 3]], tets[:, [1, 2, 3]]]), axis=1)
-unique, counts = np.unique(faces, axis=0, return_counts=True)
-boundary = unique[counts == 1]
+boundary = boundary_facets(tets)
 moved = body.points + body.point_data["u"]
 if plt is not None:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
