@@ -90,7 +90,8 @@ class MembraneSection(Section):
     file: ExistingFile | None = key(
         "surface = \"file\": the triangle surface, any format meshio reads (.obj, .stl, .ply, .vtu, gmsh .msh ...), "
         "relative to the configuration file's folder; its coordinates in the length unit; triangles only, every "
-        "edge in at most two of them, none degenerate", default=None)
+        "edge in at most two of them, one fan of triangles around each point (no bow-tie), none degenerate",
+        default=None)
     orientation: Literal["file", "outward"] | Point | None = key(
         "surface = \"file\": the side the pressure pushes to (the rest normals N): \"file\" the triangles' "
         "right-handed vertex order (default; must be consistent), \"outward\" away from the middle of the "
