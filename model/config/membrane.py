@@ -16,7 +16,9 @@ pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig):
                    (model.problem.membrane_contact.ObstacleContact)
     [[contact]]    membrane-membrane contact between two regions of the surface (facing_discs: lower, upper; a
                    .msh file: its named physical surfaces),
-                   penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact)
+                   penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact), or
+                   ``self_contact = true``: one region (default the whole membrane) against itself
+                   (model.problem.membrane_contact.MembraneSelfContact, penalty)
     [extrusion]    before [inflation] (surface = "disc"): the disc extruded, inflated without contact to a first
                    volume and smoothed into a new rest shape (the thesis' two phases)
     [muscle]       after the inflation (surface = "disc"): the patch closed with its flat base, filled with
@@ -273,13 +275,26 @@ class ContactSection(Section):
     and upper, or two named physical surfaces of a .msh file, sharing no node): the ``surface`` region's nodes
     stay on the side of the ``master`` region its normal points to (model.problem.membrane_contact
     .MembranePairContact; one pass: pick the finer mesh as ``surface``; ``two_pass``: also the master's nodes
-    against the surface's triangles, model.problem.membrane_contact.pair_contacts)."""
+    against the surface's triangles, model.problem.membrane_contact.pair_contacts). ``self_contact``: the
+    ``surface`` region (default: the whole membrane) against itself, no master (model.problem.membrane_contact
+    .MembraneSelfContact; penalty only; ``rings`` and ``reach`` set which triangles a node may pair with)."""
 
-    name: Name | None = key("a name for the summary (default: \"<surface>-<master>\")", default=None)
-    surface: Name = key("the slave region: its nodes are checked against the master's triangles (facing_discs: "
-                        "lower or upper; surface = \"file\": a named physical surface of the .msh file, checked "
-                        "when it is read)")
-    master: Name = key("the master region: its deformed triangles are the contact surface")
+    name: Name | None = key("a name for the summary (default: \"<surface>-<master>\", self-contact "
+                            "\"<surface>-self\")", default=None)
+    surface: Name | None = key("the slave region: its nodes are checked against the master's triangles "
+                               "(facing_discs: lower or upper; surface = \"file\": a named physical surface of the "
+                               ".msh file, checked when it is read); required unless self_contact (then default: "
+                               "the whole membrane, \"all\")", default=None)
+    master: Name | None = key("the master region: its deformed triangles are the contact surface; required unless "
+                              "self_contact", default=None)
+    self_contact: Flag = key("the surface region against itself (self-contact of one membrane: its nodes against its "
+                             "own deformed triangles outside their neighbourhood, on the side each node lay at rest; "
+                             "no master; penalty only; docs/membranes.md)", default=False)
+    rings: Annotated[Integer, Field(ge=1)] | None = key(
+        "self_contact only: a node never pairs with a triangle that has a vertex within rings - 1 edges of it "
+        "(default 2)", default=None)
+    reach: Positive | None = key("self_contact only: the farthest master point a node pairs with (default: the "
+                                 "region's mean edge length at rest)", "m (length)", default=None)
     penalty: Positive = key("the penalty stiffness k, per unit reference area and unit penetration (g counts both "
                             "membranes' penetrations)", "Pa/m (stress per length)")
     augmented: Flag = key("augmented Lagrangian: Uzawa updates of the slave nodes' contact pressure after each "
@@ -292,6 +307,20 @@ class ContactSection(Section):
 
     @model_validator(mode="after")
     def _pair(self) -> ContactSection:
+        if self.self_contact:
+            for k in ("master", "two_pass", "augmented"):
+                if k in self.model_fields_set and getattr(self, k):
+                    why = "the surface is its own master" if k == "master" else \
+                        "self-contact already checks every node against the other side" if k == "two_pass" else \
+                        "penalty only: both sides' nodes held exactly over-constrain, as with two_pass"
+                    fail(f"not with self_contact = true ({why})", k)
+            return self
+        for k in ("rings", "reach"):
+            if getattr(self, k) is not None:
+                fail("only with self_contact = true", k)
+        for k in ("surface", "master"):
+            if getattr(self, k) is None:
+                fail("missing (a contact pairs two regions; or self_contact = true)", k)
         if self.master == self.surface:
             fail(f"the same region as surface ({self.surface!r}): a contact pairs two membranes", "master")
         if self.tolerance is not None and not self.augmented:
@@ -304,7 +333,14 @@ class ContactSection(Section):
     @property
     def label(self) -> str:
         """The name in summary.json."""
+        if self.self_contact:
+            return self.name or f"{self.region}-self"
         return self.name or f"{self.surface}-{self.master}"
+
+    @property
+    def region(self) -> str:
+        """The slave region (self-contact: default "all", the whole membrane)."""
+        return self.surface if self.surface is not None else "all"
 
 
 class ExtrusionSection(Section):
@@ -402,7 +438,7 @@ class MembraneRunConfig(Section):
         for i, contact in enumerate(self.contacts if regions is not None else ()):  # a file's: when read
             for k in ("surface", "master"):
                 name = getattr(contact, k)
-                if name not in regions:
+                if name is not None and name not in regions:
                     known = f"regions: {', '.join(regions)}" if regions else \
                         "no regions: membrane-membrane contact needs surface = 'facing_discs' or a .msh file's " \
                         "named physical surfaces"

@@ -74,7 +74,7 @@ from model.problem.membrane import (
     radial_orientation,
     triangle_orientation,
 )
-from model.problem.membrane_contact import MembranePairContact, ObstacleContact, pair_contacts
+from model.problem.membrane_contact import MembranePairContact, MembraneSelfContact, ObstacleContact, pair_contacts
 from model.solvers.membrane import InflationStep, InflationStopped, inflate, inflate_to_volume
 
 log = logging.getLogger(__name__)
@@ -278,11 +278,13 @@ def _check_contacts(config: MembraneRunConfig, data: SurfaceMeshData) -> None:
     for i, contact in enumerate(config.contacts):
         for k in ("surface", "master"):
             name = getattr(contact, k)
-            if name not in data.region_names:
+            if name is not None and name not in data.region_names:
                 hint = "" if len(data.region_names) > 1 else \
                     "; name the sheets as physical surfaces of a .msh file"
                 raise ConfigError(f"contact[{i}].{k}: {m.file} has no region {name!r} (regions: "
                                   f"{', '.join(data.region_names)}{hint})")
+        if contact.self_contact:
+            continue
         slave, master = (np.unique(data.region_cells(getattr(contact, k))) for k in ("surface", "master"))
         shared = np.intersect1d(slave, master)
         if len(shared):
@@ -519,8 +521,10 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]
     pairs = [pair for spec in config.contacts
-             for pair in pair_contacts(problem, spec.surface, spec.master, spec.penalty, name=spec.name,
-                                       augmented=spec.augmented, two_pass=spec.two_pass)]
+             for pair in ([MembraneSelfContact(problem, spec.penalty, spec.region, rings=spec.rings or 2,
+                                               reach=spec.reach, name=spec.label)] if spec.self_contact else
+                          pair_contacts(problem, spec.surface, spec.master, spec.penalty, name=spec.name,
+                                        augmented=spec.augmented, two_pass=spec.two_pass))]
     contacts = [*contacts, *pairs]
     if m.surface in ("disc", "facing_discs") and extrusion is None:
         bump = m.bump * m.radius
@@ -540,7 +544,9 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         "law": {"name": law.name, **m.law_parameters},
         "obstacles": [_obstacle_summary(spec) for spec in config.obstacles],
         "pairs": [{"name": spec.label, "surface": spec.surface, "master": spec.master, "penalty": spec.penalty,
-                   "augmented": spec.augmented, "two_pass": spec.two_pass} for spec in config.contacts],
+                   "augmented": spec.augmented, "two_pass": spec.two_pass,
+                   **({"self_contact": True, "region": spec.region, "rings": spec.rings or 2, "reach": spec.reach}
+                      if spec.self_contact else {})} for spec in config.contacts],
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,
     }
