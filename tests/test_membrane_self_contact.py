@@ -7,23 +7,29 @@ self-contact of the whole can (the rule finds the other end's triangles for ever
 two-pass pair contact of the facing discs (each disc slave and master in turn) to round-off, node by node; the
 penetration falls as 1/k, the contact forces are internal (sum 0), the answer is mirror-symmetric; without the
 contact the ends pass through each other; before they meet the answer is the one without contact (no pair active).
+From a config: examples/membrane_can.toml ([[contact]] self_contact = true on surface = "closed_can") gives the same
+numbers; bad combinations of the keys are one-line ConfigErrors naming the key.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import EXAMPLES
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 from test_membrane_contact import STVK, _pressed_discs
 
 from meshes.membrane import closed_can
+from model.config.membrane import load_membrane
 from model.domain.distribute import build_domain
+from model.errors import ConfigError
 from model.problem.membrane import MembraneProblem, triangle_orientation
 from model.problem.membrane_contact import MembraneSelfContact, pair_contacts
 from model.solvers.membrane import inflate
 
 COMM = MPI.COMM_WORLD
+CAN = EXAMPLES / "membrane_can.toml"
 H, BUMP, SIZE = 0.8, 0.3, 0.2
 PRESSURES = [2e-3, 4e-3, 6e-3]
 
@@ -101,3 +107,40 @@ def test_bad_arguments(keys: dict, message: str) -> None:
     problem = _pressed_discs(H, BUMP)
     with pytest.raises(ValueError, match=message):
         MembraneSelfContact(problem, 10.0, **keys)
+
+
+def test_the_example(shared_tmp) -> None:  # noqa: ANN001
+    """examples/membrane_can.toml: the numbers of test_self_contact_of_a_closed_can (penetration 4.148e-4, the ends'
+    deflection 0.4002, 40 pressed nodes, Newton 7, 19, 14), the contact recorded with its rings and reach."""
+    from model.experiments.membrane_run import run_membrane
+
+    config = load_membrane(CAN)
+    summary = run_membrane(config, shared_tmp / "can", COMM)
+    assert summary["status"] == "completed"
+    (spec,) = summary["pairs"]
+    assert spec["self_contact"] is True and spec["region"] == "all" and spec["rings"] == 2
+    assert spec["reach"] == pytest.approx(0.18, rel=0.2)
+    last = summary["steps"][-1]
+    (pair,) = last["pairs"]
+    assert pair["pair"] == "all-self" and pair["active_points"] > 0
+    assert pair["max_penetration"] == pytest.approx(4.1479e-4, rel=1e-3)
+    assert last["centre_deflection"] == pytest.approx(0.40021, rel=1e-4)
+    assert np.allclose(np.add(pair["force"], pair["master_force"]), 0.0, atol=1e-14)
+
+
+@pytest.mark.parametrize(("contact", "message"), [
+    ({"master": "upper"}, r"^contact\[0\]\.master: not with self_contact = true \(the surface is its own master\)$"),
+    ({"two_pass": True}, r"^contact\[0\]\.two_pass: not with self_contact = true"),
+    ({"augmented": True}, r"^contact\[0\]\.augmented: not with self_contact = true"),
+    ({"surface": "top"}, r"^contact\[0\]\.surface: closed_can has no region 'top' \(regions: lower, upper, wall\)$"),
+    ({"rings": 0}, r"^contact\[0\]\.rings: "),
+    ({"reach": -0.1}, r"^contact\[0\]\.reach: "),
+    ({"self_contact": False, "surface": "lower"}, r"^contact\[0\]\.master: missing"),
+    ({"self_contact": False, "surface": "lower", "master": "upper", "rings": 2}, r"^contact\[0\]\.rings: only with "
+                                                                     r"self_contact = true$"),
+])
+def test_bad_self_contact_keys(contact: dict, message: str) -> None:
+    base = {"self_contact": True, "penalty": 10.0}
+    with pytest.raises(ConfigError, match=message) as err:
+        load_membrane(CAN, {"contact": [{**base, **contact}]})
+    assert "\n" not in str(err.value)

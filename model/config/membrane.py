@@ -64,13 +64,16 @@ SURFACES: dict[str, dict[str, Any]] = {
     "disc": {"boundaries": ("rim",), "fixed": {"rim": [0, 1, 2]}},
     "facing_discs": {"boundaries": ("lower_rim", "upper_rim"), "regions": ("lower", "upper"),
                      "fixed": {"lower_rim": [0, 1, 2], "upper_rim": [0, 1, 2]}},
+    "closed_can": {"boundaries": ("lower_rim", "upper_rim", "wall"), "regions": ("lower", "upper", "wall"),
+                   "fixed": {"wall": [0, 1, 2]}},
     # a user's file (meshes.surface_file): "boundary" the open edges, plus a .msh file's named physical lines; its
     # regions (a .msh file's named physical surfaces, "<region>_boundary" their open edges) checked when read
     "file": {"boundaries": None, "regions": None, "fixed": {"boundary": [0, 1, 2]}},
 }
 #: the surfaces' own keys (others refuse them)
-SURFACE_KEYS = {"bump": ("disc", "facing_discs", "file"), "gap": ("facing_discs",), "upper_size": ("facing_discs",),
-                "size": ("sphere_octant", "disc", "facing_discs"), "file": ("file",), "orientation": ("file",),
+SURFACE_KEYS = {"bump": ("disc", "facing_discs", "closed_can", "file"), "gap": ("facing_discs", "closed_can"),
+                "upper_size": ("facing_discs",), "size": ("sphere_octant", "disc", "facing_discs", "closed_can"),
+                "file": ("file",), "orientation": ("file",),
                 "centre": ("file",)}
 #: each law's parameters besides thickness
 LAW_PARAMETERS = {"stvk": ("young", "nu"), "neo_hookean": ("mu",)}
@@ -81,12 +84,15 @@ Component = Annotated[Integer, Field(ge=0, le=2)]
 class MembraneSection(Section):
     """[membrane]: the surface, its law and its Dirichlet border."""
 
-    surface: Literal["sphere_octant", "disc", "facing_discs", "file"] = key(
+    surface: Literal["sphere_octant", "disc", "facing_discs", "closed_can", "file"] = key(
         "the surface generator (meshes.membrane): \"sphere_octant\" (x, y, z >= 0 of the sphere |x| = radius, "
         "boundaries x0, y0, z0 on the symmetry planes: the closed balloon by symmetry), \"disc\" (x^2 + y^2 <= "
         "radius^2 in z = 0, boundary rim) or \"facing_discs\" (two membranes of one mesh, meshes.membrane."
         "facing_discs: region lower, the disc in z = 0 with normal +z, and region upper, the disc in z = gap with "
-        "normal -z; boundaries lower_rim, upper_rim; inflated towards each other, for [[contact]]) or \"file\" (the "
+        "normal -z; boundaries lower_rim, upper_rim; inflated towards each other, for [[contact]]), \"closed_can\" "
+        "(one closed membrane, meshes.membrane.closed_can: facing_discs' mirror-image discs, regions lower and "
+        "upper, joined by the cylinder wall of height gap, region wall, normals inward; boundaries lower_rim, "
+        "upper_rim, wall (every wall edge, held by default); for [[contact]] self_contact) or \"file\" (the "
         "user's triangle surface of ``file``, meshes.surface_file: boundary \"boundary\" its open edges, and a gmsh "
         ".msh file's named physical lines)")
     file: ExistingFile | None = key(
@@ -108,7 +114,8 @@ class MembraneSection(Section):
                            "or of any node without any, from centre)", "m (length)", default=1.0)
     size: Positive = key("largest triangle edge of the surface mesh (facing_discs: of the lower disc)",
                          "m (length)", default=0.2)
-    gap: Positive | None = key("surface = \"facing_discs\": the distance H between the two discs' planes",
+    gap: Positive | None = key("surface = \"facing_discs\", \"closed_can\": the distance H between the two "
+                               "discs' planes",
                                "m (length)", default=None)
     upper_size: Positive | None = key("surface = \"facing_discs\": largest triangle edge of the upper disc "
                                       "(default: size; another size gives non-matching meshes)", "m (length)",
@@ -125,10 +132,11 @@ class MembraneSection(Section):
         "the Dirichlet border: boundary name -> displacement components held at 0 (default: sphere_octant "
         "{x0 = [0], y0 = [1], z0 = [2]} (symmetry), disc {rim = [0, 1, 2]} (clamped), file {boundary = [0, 1, 2]} "
         "(the open edges clamped); a file's names are checked when it is read, before any solve)", default=None)
-    bump: NonNegative = key("disc, facing_discs: Newton starts from the paraboloid u_z = bump radius (1 - "
-                            "r^2/radius^2) (facing_discs: each disc towards the other; a flat membrane has no "
-                            "transverse stiffness); file: from u = bump R max(0, 1 - |X - c|^2/R^2) N_vertex (see "
-                            "centre, radius; N_vertex the nodes' oriented normals); the equilibria do not depend on it",
+    bump: NonNegative = key("disc, facing_discs, closed_can: Newton starts from the paraboloid u_z = bump radius "
+                            "(1 - r^2/radius^2) (facing_discs, closed_can: each disc towards the other; a flat "
+                            "membrane has no transverse stiffness); file: from u = bump R max(0, 1 - |X - c|^2/R^2) "
+                            "N_vertex (see centre, radius; N_vertex the nodes' oriented normals); the equilibria do "
+                            "not depend on it",
                             "dimensionless", default=0.05)
     quadrature_degree: Annotated[Integer, Field(ge=1)] = key("quadrature degree of the membrane energy",
                                                               default=2)
@@ -151,8 +159,8 @@ class MembraneSection(Section):
         for k, surfaces in SURFACE_KEYS.items():
             if k in self.model_fields_set and self.surface not in surfaces:
                 fail(f"only applies to surface = {' or '.join(map(repr, surfaces))}, not {self.surface!r}", k)
-        if self.surface == "facing_discs" and self.gap is None:
-            fail("missing (surface = 'facing_discs' needs the distance between the discs)", "gap")
+        if self.surface in ("facing_discs", "closed_can") and self.gap is None:
+            fail(f"missing (surface = {self.surface!r} needs the distance between the discs)", "gap")
         return self
 
     @property

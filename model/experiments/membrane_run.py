@@ -52,6 +52,7 @@ from forms.membrane import MembraneLaw, membrane_law
 from meshes.data import MeshData, read_msh, write_msh
 from meshes.membrane import (
     SurfaceMeshData,
+    closed_can,
     disc_surface,
     extrude,
     facing_discs,
@@ -243,6 +244,8 @@ def _surface(config: MembraneRunConfig) -> SurfaceMeshData:
     m = config.membrane
     if m.surface == "facing_discs":
         return facing_discs(m.radius, m.gap, m.size, m.upper_size)
+    if m.surface == "closed_can":
+        return closed_can(m.radius, m.gap, m.size)
     return sphere_octant(m.radius, m.size) if m.surface == "sphere_octant" else disc_surface(m.radius, m.size)
 
 
@@ -455,7 +458,7 @@ def _step_record(step: InflationStep, problem: MembraneProblem, config: Membrane
         record["max_displacement"] = _largest_displacement(problem)
         if pairs:
             record["pairs"] = [_pair_record(pair) for pair in pairs]
-    elif m.surface == "facing_discs":
+    elif m.surface in ("facing_discs", "closed_can"):
         record["centre_deflection"] = problem.max_component(2)  # the lower disc's (towards +z)
         record["pairs"] = [_pair_record(pair) for pair in pairs]
     else:
@@ -506,7 +509,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     else:
         flat = data = _surface(config) if comm.rank == 0 else None
-        orientation = _orientation(config)
+        orientation = _orientation(config) if m.surface != "closed_can" else \
+            triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
     if config.muscle is not None:
         _check_ends(config, data, comm)
@@ -526,9 +530,10 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
                           pair_contacts(problem, spec.surface, spec.master, spec.penalty, name=spec.name,
                                         augmented=spec.augmented, two_pass=spec.two_pass))]
     contacts = [*contacts, *pairs]
-    if m.surface in ("disc", "facing_discs") and extrusion is None:
+    if m.surface in ("disc", "facing_discs", "closed_can") and extrusion is None:
         bump = m.bump * m.radius
-        side = (lambda x: _facing_side(x[2], m.gap)) if m.surface == "facing_discs" else (lambda x: 1.0)
+        side = (lambda x: _facing_side(x[2], m.gap)) if m.surface in ("facing_discs", "closed_can") else \
+            (lambda x: 1.0)
         problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0],
                                                    side(x) * bump * (1 - (x[0]**2 + x[1]**2) / m.radius**2)]))
     if surface_file is not None:
@@ -545,7 +550,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         "obstacles": [_obstacle_summary(spec) for spec in config.obstacles],
         "pairs": [{"name": spec.label, "surface": spec.surface, "master": spec.master, "penalty": spec.penalty,
                    "augmented": spec.augmented, "two_pass": spec.two_pass,
-                   **({"self_contact": True, "region": spec.region, "rings": spec.rings or 2, "reach": spec.reach}
+                   **({"self_contact": True, "region": spec.region, "rings": spec.rings or 2,
+                       "reach": next(p.reach for p in pairs if p.name == spec.label)}
                       if spec.self_contact else {})} for spec in config.contacts],
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,
