@@ -43,7 +43,7 @@ from meshes._validate import positive_float
 from meshes.data import MeshData
 from meshes.gingerbread import PlanarMeshData
 
-__all__ = ["SmoothedShape", "SurfaceMeshData", "close_with_base", "combine_surfaces", "disc_surface",
+__all__ = ["SmoothedShape", "SurfaceMeshData", "close_with_base", "closed_can", "combine_surfaces", "disc_surface",
            "enclosed_volume", "extrude", "facing_discs", "orient_triangles", "smooth_rest_shape", "sphere_octant",
            "sphere_surface", "surface_areas", "tetrahedralise", "vertex_normals"]
 
@@ -359,3 +359,41 @@ def facing_discs(radius: float = 1.0, gap: float = 0.5, size: float = 0.2, upper
     upper = SurfaceMeshData(points, up.cells[:, [0, 2, 1]], up.cell_tags, up.facets, up.facet_tags,
                             up.region_names, up.boundary_names)
     return combine_surfaces({"lower": lower, "upper": upper})
+
+
+def closed_can(radius: float = 1.0, height: float = 0.8, size: float = 0.2) -> SurfaceMeshData:
+    """A closed can, one membrane: the disc of ``radius`` (disc_surface, triangles of ``size``) in z = 0 (region
+    ``lower``), its mirror image in z = ``height`` (``upper``) and the cylinder between their rims (``wall``:
+    rings at the rim's nodes' angles, ceil(height / size) layers), every triangle oriented inward (towards (0, 0,
+    height / 2)); boundaries ``lower_rim``, ``upper_rim`` (the rims: edges inside the closed surface) and ``wall``
+    (every edge of the wall). With the wall held and the pressure pushing inward the two ends bulge towards each
+    other as facing_discs' lower and upper, but as one connected membrane (self-contact)."""
+    H = positive_float("closed_can", "height", height)
+    disc = disc_surface(radius, size)
+    n = len(disc.points)
+    rim = np.unique(disc.facets[disc.facet_tags == disc.boundary_names["rim"]])
+    rim = rim[np.argsort(np.arctan2(disc.points[rim, 1], disc.points[rim, 0]))]
+    layers = max(1, int(math.ceil(H / positive_float("closed_can", "size", size) - 1e-9)))
+    top = disc.points.copy()
+    top[:, 2] = H
+    inner = [disc.points[rim] + np.array([0.0, 0.0, H * j / layers]) for j in range(1, layers)]
+    points = np.vstack([disc.points, top, *inner])
+    rings = [rim, *[2 * n + (j - 1) * len(rim) + np.arange(len(rim)) for j in range(1, layers)], n + rim]
+    wall = []
+    for j in range(layers):
+        a, b = rings[j], rings[j + 1]
+        a1, b1 = np.roll(a, -1), np.roll(b, -1)
+        wall += [np.column_stack([a, a1, b1]), np.column_stack([a, b1, b])]
+    wall_cells = np.vstack(wall)
+    cells = np.vstack([disc.cells, disc.cells + n, wall_cells])
+    cells = orient_triangles(points, cells, np.array([0.0, 0.0, H / 2]) - points[cells].mean(axis=1))
+    tags = np.concatenate([np.full(len(disc.cells), 1), np.full(len(disc.cells), 2), np.full(len(wall_cells), 3)])
+    rim_edges = disc.facets[disc.facet_tags == disc.boundary_names["rim"]]
+    wall_edges = np.unique(np.sort(np.vstack([wall_cells[:, [0, 1]], wall_cells[:, [1, 2]], wall_cells[:, [2, 0]]]),
+                                   axis=1), axis=0)
+    facets = np.vstack([rim_edges, rim_edges + n, wall_edges])
+    facet_tags = np.concatenate([np.full(len(rim_edges), 1), np.full(len(rim_edges), 2), np.full(len(wall_edges), 3)])
+    return SurfaceMeshData(points, cells.astype(np.int64), tags.astype(np.int32), facets.astype(np.int64),
+                           facet_tags.astype(np.int32), {"lower": 1, "upper": 2, "wall": 3},
+                           {"lower_rim": 1, "upper_rim": 2, "wall": 3})
+

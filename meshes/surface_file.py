@@ -19,7 +19,9 @@ contact), which must then hold every triangle. Boundaries (edges, for Dirichlet 
 Refused with a one-line ValueError (the caller names the key and the file): a file meshio cannot read, no
 triangles, other 2D or 3D cells (quads, polygons, tetrahedra: a mixed mesh), a triangle with a repeated vertex
 or a zero area (|(x1 - x0) x (x2 - x0)| <= 1e-10 l^2, l its longest edge), a non-manifold edge (shared by more
-than two triangles), a named line that is not an edge of the surface, triangles in no named physical surface of a
+than two triangles), a non-manifold (bow-tie) vertex (its triangles form two or more fans that meet only at it:
+two triangles around it are in one fan when a chain of them joins them, each sharing an edge through the vertex
+with the next), a named line that is not an edge of the surface, triangles in no named physical surface of a
 file that names some, a triangle in two of them.
 
 Orientation (``oriented_cells``): two triangles sharing an edge are consistently oriented when they run through it
@@ -38,7 +40,7 @@ import numpy as np
 
 from meshes.membrane import SurfaceMeshData, orient_triangles
 
-__all__ = ["AUTO_BOUNDARY", "check_orientation", "oriented_cells", "read_surface"]
+__all__ = ["AUTO_BOUNDARY", "check_orientation", "oriented_cells", "read_surface", "vertex_fans"]
 
 #: the name of the open boundary found from the triangles
 AUTO_BOUNDARY = "boundary"
@@ -109,6 +111,7 @@ def read_surface(path: str | Path) -> SurfaceMeshData:
         bad = edges[counts > 2][0]
         raise ValueError(f"has {int(np.count_nonzero(counts > 2))} non-manifold edges (shared by more than two "
                          f"triangles), e.g. the edge of points {points[bad[0]].tolist()} and {points[bad[1]].tolist()}")
+    _check_vertex_fans(points, cells)
     named: dict[str, np.ndarray] = {}
     if AUTO_BOUNDARY not in lines:
         named[AUTO_BOUNDARY] = edges[counts == 1]
@@ -187,6 +190,47 @@ def _check_triangles(points: np.ndarray, cells: np.ndarray) -> None:
         i = int(np.flatnonzero(degenerate)[0])
         raise ValueError(f"has {int(np.count_nonzero(degenerate))} degenerate triangles (a repeated vertex or zero "
                          f"area), e.g. triangle {i} with points {p[i].tolist()}")
+
+
+def vertex_fans(cells: np.ndarray) -> np.ndarray:
+    """The number of fans of triangles around each vertex (0 for a vertex on no triangle): the connected components
+    of the graph whose nodes are the triangle corners at the vertex, two corners joined when their triangles share
+    an edge through the vertex. One on a manifold surface (an interior vertex's closed fan or a boundary vertex's
+    open one); two or more at a bow-tie vertex. Needs every edge in at most two triangles."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    cells = np.asarray(cells, dtype=np.int64)
+    m = len(cells)
+    corner = np.arange(3 * m).reshape(m, 3)  # corner (t, i): triangle t at its local vertex i
+    local = np.array([[0, 1], [1, 2], [2, 0]])
+    # each directed edge's two corners, in the order of _edges
+    ends = np.concatenate([corner[:, local[k]] for k in range(3)])
+    _, index, counts = _undirected(cells)
+    rows = np.flatnonzero(counts[index] == 2)
+    order = rows[np.argsort(index[rows], kind="stable")]
+    a, b = order[0::2], order[1::2]  # the two directed copies of each interior edge
+    directed = _edges(cells)
+    same = np.all(directed[a] == directed[b], axis=1)
+    # join the corners at the same vertex: (a0 with b0, a1 with b1) if both run the same way, else crossed
+    b_ends = np.where(same[:, None], ends[b], ends[b][:, ::-1])
+    i = np.concatenate([ends[a][:, 0], ends[a][:, 1]])
+    j = np.concatenate([b_ends[:, 0], b_ends[:, 1]])
+    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(3 * m, 3 * m))
+    _, label = connected_components(graph, directed=False)
+    vertex = cells.reshape(-1)
+    pairs = np.unique(np.column_stack([vertex, label]), axis=0)
+    return np.bincount(pairs[:, 0], minlength=int(vertex.max(initial=-1)) + 1)
+
+
+def _check_vertex_fans(points: np.ndarray, cells: np.ndarray) -> None:
+    """ValueError for a bow-tie vertex (two or more fans of triangles meeting only at it; ``vertex_fans``)."""
+    fans = vertex_fans(cells)
+    bad = np.flatnonzero(fans > 1)
+    if len(bad):
+        v = int(bad[0])
+        raise ValueError(f"has {len(bad)} non-manifold (bow-tie) vertices (two or more fans of triangles meeting "
+                         f"only at the vertex), e.g. point {v} at {points[v].tolist()} with {int(fans[v])} fans")
 
 
 def check_orientation(cells: np.ndarray) -> tuple[int, tuple[int, int] | None]:

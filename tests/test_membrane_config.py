@@ -248,7 +248,8 @@ def test_contact_needs_two_membranes() -> None:
                                           r"regions: membrane-membrane contact needs surface = 'facing_discs' or "
                                           r"a \.msh file's named physical surfaces\)$"):
         load_membrane(BALLOON, {"contact": [_PAIR]})
-    with pytest.raises(ConfigError, match=r"^membrane\.gap: only applies to surface = 'facing_discs', not "):
+    with pytest.raises(ConfigError, match=r"^membrane\.gap: only applies to surface = 'facing_discs' or "
+                                          r"'closed_can', not "):
         load_membrane(BALLOON, {"membrane.gap": 0.5})
 
 

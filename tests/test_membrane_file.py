@@ -7,8 +7,9 @@
 - the same file with half its triangles turned: refused with orientation = "file" (the file named), and
   inflated to the same displacements with orientation = [0, 0, 1];
 - bad files: a one-line ConfigError naming the key and the file before the output folder is made (missing,
-  unreadable, no triangles, quads besides triangles, a non-manifold edge, a degenerate triangle, an unknown border
-  name, a closed surface with the default border);
+  unreadable, no triangles, quads besides triangles, a non-manifold edge, a bow-tie vertex (two fans meeting at
+  one point; ``vertex_fans`` counts one fan at every vertex of a disc, a sphere and a disc with half its triangles
+  turned), a degenerate triangle, an unknown border name, a closed surface with the default border);
 - examples/membrane_file.toml (examples/data/dome_patch.obj) runs.
 """
 
@@ -123,7 +124,7 @@ def _bad_files(folder: Path) -> dict[str, Path]:
     p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0.5, 1.0], [2, 0, 0]], dtype=float)
     files = {"missing": folder / "none.obj", "unreadable": folder / "garbage.stl",
              "no_triangles": folder / "lines.vtu", "quads": folder / "quads.vtu", "non_manifold": folder / "fin.obj",
-             "degenerate": folder / "flat.obj", "closed": folder / "sphere.obj"}
+             "degenerate": folder / "flat.obj", "closed": folder / "sphere.obj", "bow_tie": folder / "bowtie.obj"}
     if MPI.COMM_WORLD.rank == 0:
         files["unreadable"].write_text("solid nothing\n facet normal garbage\n")
         meshio.Mesh(p, [("line", np.array([[0, 1], [1, 2]]))]).write(files["no_triangles"])
@@ -133,6 +134,10 @@ def _bad_files(folder: Path) -> dict[str, Path]:
         meshio.Mesh(p, [("triangle", np.array([[0, 1, 2], [0, 1, 5]]))]).write(files["degenerate"])
         sphere = sphere_surface(1.0, 0.8)
         meshio.Mesh(sphere.points, [("triangle", sphere.cells)]).write(files["closed"])
+        # two fans of two triangles each, meeting only at the point (0.5, 0.5, 0): every edge in one triangle
+        q = np.array([[0.5, 0.5, 0], [0, 0, 0], [1, 0, 0], [0.5, -0.5, 0.2], [0, 1, 0], [1, 1, 0], [0.5, 1.5, 0.2]])
+        meshio.Mesh(q, [("triangle", np.array([[0, 1, 2], [1, 3, 2], [0, 5, 4], [4, 5, 6]]))]).write(
+            files["bow_tie"])
     MPI.COMM_WORLD.barrier()
     return files
 
@@ -144,6 +149,8 @@ def _bad_files(folder: Path) -> dict[str, Path]:
     ("quads", {}, r"^membrane\.file: .*quads\.vtu: has quad cells besides triangles"),
     ("non_manifold", {}, r"^membrane\.file: .*fin\.obj: has 1 non-manifold edges \(shared by more than two"),
     ("degenerate", {}, r"^membrane\.file: .*flat\.obj: has 1 degenerate triangles"),
+    ("bow_tie", {}, r"^membrane\.file: .*bowtie\.obj: has 1 non-manifold \(bow-tie\) vertices \(two or more fans "
+                    r"of triangles meeting only at the vertex\), e\.g\. point 0 at \[0\.5, 0\.5, 0\.0\] with 2 fans$"),
     ("closed", {}, r"^membrane\.fixed: .*sphere\.obj has no edges on 'boundary' \(a closed surface"),
     ("closed", {"fixed": {"rim": [2]}}, r"^membrane\.fixed\.rim: .*sphere\.obj has no boundary 'rim' "
                                         r"\(boundaries: boundary\)$"),
@@ -206,3 +213,18 @@ def test_a_flat_file_cannot_be_oriented_outward(disc, shared_tmp: Path) -> None:
     with pytest.raises(ConfigError, match=r"^membrane\.orientation: .*mixed\.obj: triangles inconsistently oriented "
                                           r"by orientation outward: "):
         _run({"surface": "file", "file": str(path), "orientation": "outward"}, shared_tmp / "out")
+
+
+def test_vertex_fans_one_fan_on_manifold_surfaces(disc) -> None:  # noqa: ANN001
+    """One fan at every vertex of the disc (open fans on the rim), the sphere (closed fans) and the disc with every
+    other triangle turned (the fans do not depend on the orientation); two at the tip of two fans meeting at a point,
+    and three at three fans."""
+    from meshes.surface_file import vertex_fans
+
+    turned = disc.cells.copy()
+    turned[::2] = turned[::2][:, [0, 2, 1]]
+    for cells in (disc.cells, sphere_surface(1.0, 0.8).cells, turned):
+        assert np.all(vertex_fans(cells) == 1)
+    fans = np.array([[0, 1, 2], [0, 2, 3], [0, 4, 5], [0, 5, 6]])
+    assert vertex_fans(fans).tolist() == [2, 1, 1, 1, 1, 1, 1]
+    assert vertex_fans(np.vstack([fans, [[0, 7, 8]]])).tolist() == [3] + [1] * 8

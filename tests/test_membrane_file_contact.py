@@ -6,7 +6,8 @@
   node (matched by coordinates) as the built-in run to 1e-12 of max |u|, the same contact force (to 1e-12) and
   penetration per step; the file's sheets get their open boundaries as borders (`lower_boundary`,
   `upper_boundary`, the same edges as the rims);
-- a contact naming a region the file does not have, sheets sharing nodes, triangles in no named surface, a
+- a contact naming a region the file does not have, sheets sharing nodes (along a seam; two sheets touching at a
+  point are a bow-tie vertex, refused by meshes.surface_file), triangles in no named surface, a
   triangle in two, a file without named surfaces: a one-line ConfigError naming the key and the file, before any solve.
 """
 
@@ -132,10 +133,25 @@ def test_bad_contacts_on_a_file(discs, shared_tmp: Path) -> None:  # noqa: ANN00
         meshio.Mesh(points, mesh.cells, cell_data=mesh.cell_data, field_data=mesh.field_data).write(
             shared_tmp / "touching.msh", file_format="gmsh22", binary=False)
     MPI.COMM_WORLD.barrier()
-    with pytest.raises(ConfigError, match=r"^contact\[0\]: .*touching\.msh: regions 'lower' and 'upper' share 1 "
+    # (a bow-tie point: refused by meshes.surface_file before the contact's check)
+    with pytest.raises(ConfigError, match=r"^membrane\.file: .*touching\.msh: has 1 non-manifold \(bow-tie\) "
+                                          r"vertices .* with 2 fans$"):
+        _run(_document({"surface": "file", "file": str(shared_tmp / "touching.msh")}), shared_tmp / "refused")
+    # two sheets along a seam: the lower disc alone, its triangles of x < 0 named lower, the others upper
+    if MPI.COMM_WORLD.rank == 0:
+        mesh = meshio.read(path)
+        triangles = mesh.cells_dict["triangle"][mesh.cell_data_dict["gmsh:physical"]["triangle"] == 1]
+        tags = np.where(mesh.points[triangles].mean(axis=1)[:, 0] < 0, 1, 2)
+        meshio.Mesh(mesh.points, [("triangle", triangles)], cell_data={"gmsh:physical": [tags],
+                                                                       "gmsh:geometrical": [tags]},
+                    field_data={"lower": np.array([1, 2]), "upper": np.array([2, 2])}).write(
+            shared_tmp / "seam.msh", file_format="gmsh22", binary=False)
+    MPI.COMM_WORLD.barrier()
+    with pytest.raises(ConfigError, match=r"^contact\[0\]: .*seam\.msh: regions 'lower' and 'upper' share \d+ "
                                           r"nodes, e\.g\. the point \[.*\] \(membrane-membrane contact needs two "
                                           r"separate sheets.*\)$"):
-        _run(_document({"surface": "file", "file": str(shared_tmp / "touching.msh")}), shared_tmp / "refused")
+        _run(_document({"surface": "file", "file": str(shared_tmp / "seam.msh"), "fixed": {"boundary": [0, 1, 2]}}),
+             shared_tmp / "refused")
     # a triangle in no named physical surface
     if MPI.COMM_WORLD.rank == 0:
         mesh = meshio.read(path)

@@ -16,7 +16,9 @@ pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig):
                    (model.problem.membrane_contact.ObstacleContact)
     [[contact]]    membrane-membrane contact between two regions of the surface (facing_discs: lower, upper; a
                    .msh file: its named physical surfaces),
-                   penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact)
+                   penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact), or
+                   ``self_contact = true``: one region (default the whole membrane) against itself
+                   (model.problem.membrane_contact.MembraneSelfContact, penalty)
     [extrusion]    before [inflation] (surface = "disc"): the disc extruded, inflated without contact to a first
                    volume and smoothed into a new rest shape (the thesis' two phases)
     [muscle]       after the inflation (surface = "disc"): the patch closed with its flat base, filled with
@@ -62,13 +64,16 @@ SURFACES: dict[str, dict[str, Any]] = {
     "disc": {"boundaries": ("rim",), "fixed": {"rim": [0, 1, 2]}},
     "facing_discs": {"boundaries": ("lower_rim", "upper_rim"), "regions": ("lower", "upper"),
                      "fixed": {"lower_rim": [0, 1, 2], "upper_rim": [0, 1, 2]}},
+    "closed_can": {"boundaries": ("lower_rim", "upper_rim", "wall"), "regions": ("lower", "upper", "wall"),
+                   "fixed": {"wall": [0, 1, 2]}},
     # a user's file (meshes.surface_file): "boundary" the open edges, plus a .msh file's named physical lines; its
     # regions (a .msh file's named physical surfaces, "<region>_boundary" their open edges) checked when read
     "file": {"boundaries": None, "regions": None, "fixed": {"boundary": [0, 1, 2]}},
 }
 #: the surfaces' own keys (others refuse them)
-SURFACE_KEYS = {"bump": ("disc", "facing_discs", "file"), "gap": ("facing_discs",), "upper_size": ("facing_discs",),
-                "size": ("sphere_octant", "disc", "facing_discs"), "file": ("file",), "orientation": ("file",),
+SURFACE_KEYS = {"bump": ("disc", "facing_discs", "closed_can", "file"), "gap": ("facing_discs", "closed_can"),
+                "upper_size": ("facing_discs",), "size": ("sphere_octant", "disc", "facing_discs", "closed_can"),
+                "file": ("file",), "orientation": ("file",),
                 "centre": ("file",)}
 #: each law's parameters besides thickness
 LAW_PARAMETERS = {"stvk": ("young", "nu"), "neo_hookean": ("mu",)}
@@ -79,18 +84,22 @@ Component = Annotated[Integer, Field(ge=0, le=2)]
 class MembraneSection(Section):
     """[membrane]: the surface, its law and its Dirichlet border."""
 
-    surface: Literal["sphere_octant", "disc", "facing_discs", "file"] = key(
+    surface: Literal["sphere_octant", "disc", "facing_discs", "closed_can", "file"] = key(
         "the surface generator (meshes.membrane): \"sphere_octant\" (x, y, z >= 0 of the sphere |x| = radius, "
         "boundaries x0, y0, z0 on the symmetry planes: the closed balloon by symmetry), \"disc\" (x^2 + y^2 <= "
         "radius^2 in z = 0, boundary rim) or \"facing_discs\" (two membranes of one mesh, meshes.membrane."
         "facing_discs: region lower, the disc in z = 0 with normal +z, and region upper, the disc in z = gap with "
-        "normal -z; boundaries lower_rim, upper_rim; inflated towards each other, for [[contact]]) or \"file\" (the "
+        "normal -z; boundaries lower_rim, upper_rim; inflated towards each other, for [[contact]]), \"closed_can\" "
+        "(one closed membrane, meshes.membrane.closed_can: facing_discs' mirror-image discs, regions lower and "
+        "upper, joined by the cylinder wall of height gap, region wall, normals inward; boundaries lower_rim, "
+        "upper_rim, wall (every wall edge, held by default); for [[contact]] self_contact) or \"file\" (the "
         "user's triangle surface of ``file``, meshes.surface_file: boundary \"boundary\" its open edges, and a gmsh "
         ".msh file's named physical lines)")
     file: ExistingFile | None = key(
         "surface = \"file\": the triangle surface, any format meshio reads (.obj, .stl, .ply, .vtu, gmsh .msh ...), "
         "relative to the configuration file's folder; its coordinates in the length unit; triangles only, every "
-        "edge in at most two of them, none degenerate", default=None)
+        "edge in at most two of them, one fan of triangles around each point (no bow-tie), none degenerate",
+        default=None)
     orientation: Literal["file", "outward"] | Point | None = key(
         "surface = \"file\": the side the pressure pushes to (the rest normals N): \"file\" the triangles' "
         "right-handed vertex order (default; must be consistent), \"outward\" away from the middle of the "
@@ -105,7 +114,8 @@ class MembraneSection(Section):
                            "or of any node without any, from centre)", "m (length)", default=1.0)
     size: Positive = key("largest triangle edge of the surface mesh (facing_discs: of the lower disc)",
                          "m (length)", default=0.2)
-    gap: Positive | None = key("surface = \"facing_discs\": the distance H between the two discs' planes",
+    gap: Positive | None = key("surface = \"facing_discs\", \"closed_can\": the distance H between the two "
+                               "discs' planes",
                                "m (length)", default=None)
     upper_size: Positive | None = key("surface = \"facing_discs\": largest triangle edge of the upper disc "
                                       "(default: size; another size gives non-matching meshes)", "m (length)",
@@ -122,10 +132,11 @@ class MembraneSection(Section):
         "the Dirichlet border: boundary name -> displacement components held at 0 (default: sphere_octant "
         "{x0 = [0], y0 = [1], z0 = [2]} (symmetry), disc {rim = [0, 1, 2]} (clamped), file {boundary = [0, 1, 2]} "
         "(the open edges clamped); a file's names are checked when it is read, before any solve)", default=None)
-    bump: NonNegative = key("disc, facing_discs: Newton starts from the paraboloid u_z = bump radius (1 - "
-                            "r^2/radius^2) (facing_discs: each disc towards the other; a flat membrane has no "
-                            "transverse stiffness); file: from u = bump R max(0, 1 - |X - c|^2/R^2) N_vertex (see "
-                            "centre, radius; N_vertex the nodes' oriented normals); the equilibria do not depend on it",
+    bump: NonNegative = key("disc, facing_discs, closed_can: Newton starts from the paraboloid u_z = bump radius "
+                            "(1 - r^2/radius^2) (facing_discs, closed_can: each disc towards the other; a flat "
+                            "membrane has no transverse stiffness); file: from u = bump R max(0, 1 - |X - c|^2/R^2) "
+                            "N_vertex (see centre, radius; N_vertex the nodes' oriented normals); the equilibria do "
+                            "not depend on it",
                             "dimensionless", default=0.05)
     quadrature_degree: Annotated[Integer, Field(ge=1)] = key("quadrature degree of the membrane energy",
                                                               default=2)
@@ -148,8 +159,8 @@ class MembraneSection(Section):
         for k, surfaces in SURFACE_KEYS.items():
             if k in self.model_fields_set and self.surface not in surfaces:
                 fail(f"only applies to surface = {' or '.join(map(repr, surfaces))}, not {self.surface!r}", k)
-        if self.surface == "facing_discs" and self.gap is None:
-            fail("missing (surface = 'facing_discs' needs the distance between the discs)", "gap")
+        if self.surface in ("facing_discs", "closed_can") and self.gap is None:
+            fail(f"missing (surface = {self.surface!r} needs the distance between the discs)", "gap")
         return self
 
     @property
@@ -272,13 +283,26 @@ class ContactSection(Section):
     and upper, or two named physical surfaces of a .msh file, sharing no node): the ``surface`` region's nodes
     stay on the side of the ``master`` region its normal points to (model.problem.membrane_contact
     .MembranePairContact; one pass: pick the finer mesh as ``surface``; ``two_pass``: also the master's nodes
-    against the surface's triangles, model.problem.membrane_contact.pair_contacts)."""
+    against the surface's triangles, model.problem.membrane_contact.pair_contacts). ``self_contact``: the
+    ``surface`` region (default: the whole membrane) against itself, no master (model.problem.membrane_contact
+    .MembraneSelfContact; penalty only; ``rings`` and ``reach`` set which triangles a node may pair with)."""
 
-    name: Name | None = key("a name for the summary (default: \"<surface>-<master>\")", default=None)
-    surface: Name = key("the slave region: its nodes are checked against the master's triangles (facing_discs: "
-                        "lower or upper; surface = \"file\": a named physical surface of the .msh file, checked "
-                        "when it is read)")
-    master: Name = key("the master region: its deformed triangles are the contact surface")
+    name: Name | None = key("a name for the summary (default: \"<surface>-<master>\", self-contact "
+                            "\"<surface>-self\")", default=None)
+    surface: Name | None = key("the slave region: its nodes are checked against the master's triangles "
+                               "(facing_discs: lower or upper; surface = \"file\": a named physical surface of the "
+                               ".msh file, checked when it is read); required unless self_contact (then default: "
+                               "the whole membrane, \"all\")", default=None)
+    master: Name | None = key("the master region: its deformed triangles are the contact surface; required unless "
+                              "self_contact", default=None)
+    self_contact: Flag = key("the surface region against itself (self-contact of one membrane: its nodes against its "
+                             "own deformed triangles outside their neighbourhood, on the side each node lay at rest; "
+                             "no master; penalty only; docs/membranes.md)", default=False)
+    rings: Annotated[Integer, Field(ge=1)] | None = key(
+        "self_contact only: a node never pairs with a triangle that has a vertex within rings - 1 edges of it "
+        "(default 2)", default=None)
+    reach: Positive | None = key("self_contact only: the farthest master point a node pairs with (default: the "
+                                 "region's mean edge length at rest)", "m (length)", default=None)
     penalty: Positive = key("the penalty stiffness k, per unit reference area and unit penetration (g counts both "
                             "membranes' penetrations)", "Pa/m (stress per length)")
     augmented: Flag = key("augmented Lagrangian: Uzawa updates of the slave nodes' contact pressure after each "
@@ -291,6 +315,20 @@ class ContactSection(Section):
 
     @model_validator(mode="after")
     def _pair(self) -> ContactSection:
+        if self.self_contact:
+            for k in ("master", "two_pass", "augmented"):
+                if k in self.model_fields_set and getattr(self, k):
+                    why = "the surface is its own master" if k == "master" else \
+                        "self-contact already checks every node against the other side" if k == "two_pass" else \
+                        "penalty only: both sides' nodes held exactly over-constrain, as with two_pass"
+                    fail(f"not with self_contact = true ({why})", k)
+            return self
+        for k in ("rings", "reach"):
+            if getattr(self, k) is not None:
+                fail("only with self_contact = true", k)
+        for k in ("surface", "master"):
+            if getattr(self, k) is None:
+                fail("missing (a contact pairs two regions; or self_contact = true)", k)
         if self.master == self.surface:
             fail(f"the same region as surface ({self.surface!r}): a contact pairs two membranes", "master")
         if self.tolerance is not None and not self.augmented:
@@ -303,7 +341,14 @@ class ContactSection(Section):
     @property
     def label(self) -> str:
         """The name in summary.json."""
+        if self.self_contact:
+            return self.name or f"{self.region}-self"
         return self.name or f"{self.surface}-{self.master}"
+
+    @property
+    def region(self) -> str:
+        """The slave region (self-contact: default "all", the whole membrane)."""
+        return self.surface if self.surface is not None else "all"
 
 
 class ExtrusionSection(Section):
@@ -401,7 +446,7 @@ class MembraneRunConfig(Section):
         for i, contact in enumerate(self.contacts if regions is not None else ()):  # a file's: when read
             for k in ("surface", "master"):
                 name = getattr(contact, k)
-                if name not in regions:
+                if name is not None and name not in regions:
                     known = f"regions: {', '.join(regions)}" if regions else \
                         "no regions: membrane-membrane contact needs surface = 'facing_discs' or a .msh file's " \
                         "named physical surfaces"

@@ -54,8 +54,8 @@ from model.problem.membrane import MembraneProblem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MembranePairContact", "ObstacleContact", "contact_fraction", "nodal_measure",
-           "pair_contacts", "touching_nodes"]
+__all__ = ["REST_SIDE", "MembranePairContact", "MembraneSelfContact", "ObstacleContact", "contact_fraction",
+           "nodal_measure", "pair_contacts", "touching_nodes"]
 
 def nodal_measure(problem: MembraneProblem, region: str | None = None) -> ufl.Measure:
     """dA over the membrane's cells (or its cell region ``region``) with the vertex rule.
@@ -238,12 +238,7 @@ class MembranePairContact(_NodalContact):
         if not (isinstance(k, (int, float)) and np.isfinite(k) and k > 0):
             raise ValueError(f"membrane contact: k must be a finite number > 0, got {k!r}")
         domain = problem.domain
-        for region in (slave, master):
-            error = domain.region_error(region)
-            if error is not None or region == "all":
-                raise ValueError(f"membrane contact: region: {error or 'a named membrane region, not all'}")
-        if slave == master:
-            raise ValueError("membrane contact: slave and master must be two regions")
+        self._check_regions(problem, slave, master)
         self.slave, self.master, self.neighbours = slave, master, int(neighbours)
         self.name = name or f"{slave}-{master}"
         msh, V = domain.mesh, problem.V
@@ -267,7 +262,7 @@ class MembranePairContact(_NodalContact):
         self.k = fem.Constant(msh, PETSc.ScalarType(k))
         X = ufl.SpatialCoordinate(msh)
         self.gap = ufl.dot(self.contact_normal, X + problem.u - self.X_star - self.z)
-        dA = nodal_measure(problem, slave)
+        dA = nodal_measure(problem, None if slave == "all" else slave)
         # the augmented Lagrangian's multiplier at the slave nodes (a scalar P1 Function, as in ObstacleContact)
         self.augmented = bool(augmented)
         Q, to_v = V.sub(0).collapse()
@@ -295,6 +290,41 @@ class MembranePairContact(_NodalContact):
         self._setup(problem, energy, dA)
         self.slave_mask = np.zeros(self.n_owned, dtype=bool)
         self.slave_mask[self.slave_blocks] = True
+
+    @staticmethod
+    def _check_regions(problem: MembraneProblem, slave: str, master: str) -> None:
+        """ValueError unless ``slave`` and ``master`` are two named regions."""
+        for region in (slave, master):
+            error = problem.domain.region_error(region)
+            if error is not None or region == "all":
+                raise ValueError(f"membrane contact: region: {error or 'a named membrane region, not all'}")
+        if slave == master:
+            raise ValueError("membrane contact: slave and master must be two regions")
+
+    def _closest(self, xs: np.ndarray, x_tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The closest master triangle to each slave node (all ranks'; among its ``neighbours`` nearest by
+        centroid) and the barycentric coordinates of the closest point on it."""
+        from scipy.spatial import cKDTree
+
+        from model.problem.body_contact import closest_points_on_triangles
+
+        n, k = len(xs), min(self.neighbours, len(x_tri))
+        best_d, best_t, best_b = np.full(n, np.inf), np.zeros(n, dtype=np.int64), np.zeros((n, 3))
+        if n:
+            # the k nearest triangles (by centroid) of every slave node, their closest points in one call
+            near = np.asarray(cKDTree(x_tri.mean(axis=1)).query(xs, k=k)[1]).reshape(n, k)
+            closest, bary = closest_points_on_triangles(np.repeat(xs, k, axis=0), x_tri[near.ravel()])
+            dist = np.linalg.norm(np.repeat(xs, k, axis=0) - closest, axis=1).reshape(n, k)
+            bary = bary.reshape(n, k, 3)
+            for j in range(k):  # the first of the nearest within round-off
+                d = dist[:, j]
+                better = d < best_d - 1e-14 * np.maximum(d, 1.0)
+                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better, j]
+        return best_t, best_b
+
+    def _sides(self, best_t: np.ndarray, best_b: np.ndarray) -> np.ndarray | None:
+        """A factor per slave node on the master's normal (None: 1 everywhere, the side the normal points to)."""
+        return None
 
     def _master_setup(self, problem: MembraneProblem) -> None:
         """Owned master cells: their three block dofs, ordered so that (x1 - x0) x (x2 - x0) . N > 0 (N the rest
@@ -325,10 +355,6 @@ class MembranePairContact(_NodalContact):
     def update(self) -> None:
         """Pair every owned slave node with its closest master point at the current u; set X*, n, z and Pi.
         Collective."""
-        from scipy.spatial import cKDTree
-
-        from model.problem.body_contact import closest_points_on_triangles
-
         current = self.problem.u.x.array
         changed = self._stamp is None or not np.array_equal(self._stamp, current)
         u = current.reshape(-1, 3)
@@ -341,18 +367,7 @@ class MembranePairContact(_NodalContact):
         X_tri, g_tri = self._X_tri, self._g_tri
         x_tri = X_tri + np.concatenate([d for _, d, _ in parts])
         xs = self._slave_reference + np.concatenate([d for _, _, d in parts])[self._slave_first]
-        n, k = len(xs), min(self.neighbours, len(x_tri))
-        best_d, best_t, best_b = np.full(n, np.inf), np.zeros(n, dtype=np.int64), np.zeros((n, 3))
-        if n:
-            # the k nearest triangles (by centroid) of every slave node, their closest points in one call
-            near = np.asarray(cKDTree(x_tri.mean(axis=1)).query(xs, k=k)[1]).reshape(n, k)
-            closest, bary = closest_points_on_triangles(np.repeat(xs, k, axis=0), x_tri[near.ravel()])
-            dist = np.linalg.norm(np.repeat(xs, k, axis=0) - closest, axis=1).reshape(n, k)
-            bary = bary.reshape(n, k, 3)
-            for j in range(k):  # the first of the nearest within round-off
-                d = dist[:, j]
-                better = d < best_d - 1e-14 * np.maximum(d, 1.0)
-                best_d[better], best_t[better], best_b[better] = d[better], near[better, j], bary[better, j]
+        best_t, best_b = self._closest(xs, x_tri)
         # the master's vertex normals (area-weighted mean of its triangles' normals), interpolated at x*: a
         # normal continuous across the master's edges, so the gap does not jump when x* changes triangle
         face = np.cross(x_tri[:, 1] - x_tri[:, 0], x_tri[:, 2] - x_tri[:, 0])
@@ -363,6 +378,9 @@ class MembranePairContact(_NodalContact):
         vertex /= np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-300)
         normal = np.einsum("ij,ijk->ik", best_b, vertex[index[best_t]])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        sides = self._sides(best_t, best_b)
+        if sides is not None:
+            normal *= sides[:, None]
         if self.frozen is not None:  # the pairing of the last update, z from the current u (derivative checks)
             best_t, best_b, normal = self.frozen
         self.pairing = (best_t, best_b, normal)
@@ -505,6 +523,150 @@ class MembranePairContact(_NodalContact):
                 "master_force": [float(f) for f in master],
                 "contact_fraction": _area_fraction(self.comm, lumped, active),
                 "active_points": self.comm.allreduce(int(np.sum(active)), op=MPI.SUM)}
+
+
+#: a node pairs with a point x* of a triangle only when, at rest, X_s - X* makes an angle of more than 30 degrees with
+#: the triangle's tangent plane there: |N* . (X_s - X*)| >= REST_SIDE |X_s - X*|
+REST_SIDE = 0.5
+
+
+class MembraneSelfContact(MembranePairContact):
+    """Penalty self-contact of one membrane: the ``region`` (default "all", the whole membrane) both the slave and
+    the master of a MembranePairContact (the same gap, energy, chain rule R += Pi^T dPi_c/dz and UFL-derived
+    coupling matrices; module docstring there), after model.problem.self_contact.SelfContact for the choice of the
+    partner. Every node s of the region is a slave; its master point x* is the closest point of the deformed
+    region among the triangles T that pass
+
+        (1) neighbourhood: T has no vertex within ``rings`` - 1 edges of s (rings = 1: T does not contain s; the
+            default 2: T touches neither s nor a node joined to s by an edge);
+        (2) reach: |x_s - x*| <= ``reach`` (default: the mean rest edge length of the region's triangles);
+        (3) a side at rest: |c| >= 1/2 (REST_SIDE), c = N* . (X_s - X*) / |X_s - X*|, X* = sum_j b_j X_j the rest
+            position of the paired point (the same barycentric b_j) and N* the rest vertex normals interpolated
+            there (normalised): the node lay at rest clearly on one side of the triangle's tangent plane (more
+            than 30 degrees off it), not beside it in the same sheet;
+
+    the closest of them (ties, equal distances to 1e-14 relative, to the smallest global triangle: the same pairing
+    on any partition). A membrane has two faces, so the side is not the normal's: the gap is
+
+        g = s n . (x_s - x*),   s = sign(c) (the side of T the node started on, at rest),
+
+    n the current master normal of MembranePairContact (the vertex normals interpolated at x*, oriented by the rest
+    normals), i.e. the factor s on n makes the pair's rule "stay on the side the normal points to" into "stay on
+    the side you came from" (with s = +1, as for two facing membranes, it is MembranePairContact's gap). A node
+    with no partner has n = 0: g = 0, no energy, force or tangent (its augmented multiplier stays at 0 from Uzawa:
+    max(lambda - k g, 0) with lambda held at the pairing's). Pi_c = int_region (k/2) min(g, 0)^2 dA (nodal rule).
+    The contact is internal: the slave force and the master force (report) cancel (sum_j b_j = 1).
+
+    What the rule cannot see: a surface flat at rest that folds onto itself (every c = 0: no pair); a fold
+    sharper than rings - 1 edges; a penetration deeper than ``reach`` (choose k so that p/k stays well below it)."""
+
+    def __init__(self, problem: MembraneProblem, k: float, region: str = "all", rings: int = 2,
+                 reach: float | None = None, neighbours: int = 8, name: str | None = None,
+                 augmented: bool = False) -> None:
+        if isinstance(rings, bool) or not isinstance(rings, int) or rings < 1:
+            raise ValueError(f"membrane self-contact: rings: {rings!r} must be an integer >= 1")
+        if reach is not None and not (isinstance(reach, (int, float)) and np.isfinite(reach) and reach > 0):
+            raise ValueError(f"membrane self-contact: reach: {reach!r} must be a finite number > 0")
+        self.rings, self._reach = int(rings), reach
+        self._side: np.ndarray = np.zeros(0)
+        super().__init__(problem, region, region, k, neighbours=neighbours, name=name or f"{region}-self",
+                         augmented=augmented)
+        self._topology()
+
+    @staticmethod
+    def _check_regions(problem: MembraneProblem, slave: str, master: str) -> None:
+        error = problem.domain.region_error(slave)
+        if error is not None:
+            raise ValueError(f"membrane self-contact: region: {error}")
+
+    def _topology(self) -> None:
+        """The neighbourhood relation of the region's nodes (within rings - 1 edges: the nonzeros of (I + A)^(rings
+        - 1), A the edge adjacency) as sorted keys row * n + column, the rest vertex normals and the reach."""
+        count, tri = self._n_master_nodes, self._tri_nodes
+        if not np.array_equal(np.unique(self._g_tri), self._slave_global):
+            raise RuntimeError("membrane self-contact: the slave nodes are not the nodes of the region's triangles")
+        rows = np.concatenate([tri[:, i] for i in (0, 1, 2, 1, 2, 0)])
+        cols = np.concatenate([tri[:, i] for i in (1, 2, 0, 0, 1, 2)])
+        step = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(count, count))
+        step = step + csr_matrix((np.ones(count), (np.arange(count), np.arange(count))), shape=(count, count))
+        near = csr_matrix((np.ones(count), (np.arange(count), np.arange(count))), shape=(count, count))
+        for _ in range(self.rings - 1):
+            near = (near @ step).tocsr()
+        near = near.tocoo()
+        self.neighbourhood = np.sort(near.row.astype(np.int64) * count + near.col.astype(np.int64))
+        X = self._X_tri
+        face = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+        vertex = np.zeros((count, 3))
+        for j in range(3):
+            np.add.at(vertex, tri[:, j], face)
+        self._rest_vertex = vertex / np.maximum(np.linalg.norm(vertex, axis=1, keepdims=True), 1e-300)
+        edges = np.linalg.norm(X - np.roll(X, 1, axis=1), axis=2)
+        self.reach = float(edges.mean()) if self._reach is None else float(self._reach)
+        self._stamp = None  # pair again with the rule
+        log.info("membrane self-contact %s: %d triangles, %d nodes, rings %d, reach %.3g", self.name, len(tri),
+                 count, self.rings, self.reach)
+
+    def _closest(self, xs: np.ndarray, x_tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The partner of each node by the rule (class docstring), its barycentric coordinates; the side s (0: no
+        partner) kept for ``_sides``."""
+        from scipy.spatial import cKDTree
+
+        from model.problem.body_contact import closest_points_on_triangles
+
+        n = len(xs)
+        best_t, best_b, side = np.zeros(n, dtype=np.int64), np.zeros((n, 3)), np.zeros(n)
+        self._side = side
+        if n == 0 or not hasattr(self, "neighbourhood"):  # the first pairing, before _topology: none
+            return best_t, best_b
+        count, tri = self._n_master_nodes, self._tri_nodes
+        centroids = x_tri.mean(axis=1)
+        radius = self.reach + float(np.linalg.norm(x_tri - centroids[:, None], axis=2).max())
+        lists = cKDTree(centroids).query_ball_point(xs, radius)
+        lengths = np.array([len(c) for c in lists], dtype=np.int64)
+        rows = np.repeat(np.arange(n), lengths)
+        cols = np.concatenate([np.asarray(c, dtype=np.int64) for c in lists]) if lengths.sum() else \
+            np.zeros(0, dtype=np.int64)
+        # (1) neighbourhood: a vertex of T within rings - 1 edges of the node (slave row i is master node i)
+        keys = rows[:, None] * count + tri[cols]
+        position = np.minimum(np.searchsorted(self.neighbourhood, keys), len(self.neighbourhood) - 1)
+        keep = ~np.any(self.neighbourhood[position] == keys, axis=1)
+        rows, cols = rows[keep], cols[keep]
+        closest, bary = closest_points_on_triangles(xs[rows], x_tri[cols])
+        d = np.linalg.norm(xs[rows] - closest, axis=1)
+        # (2) reach; (3) a side at rest
+        X_star = np.einsum("ij,ijk->ik", bary, self._X_tri[cols])
+        N_star = np.einsum("ij,ijk->ik", bary, self._rest_vertex[tri[cols]])
+        N_star /= np.maximum(np.linalg.norm(N_star, axis=1, keepdims=True), 1e-300)
+        offset = self._slave_reference[rows] - X_star
+        c = np.einsum("ij,ij->i", N_star, offset) / np.maximum(np.linalg.norm(offset, axis=1), 1e-300)
+        keep = (d <= self.reach) & (np.abs(c) >= REST_SIDE)
+        rows, cols, bary, d, c = rows[keep], cols[keep], bary[keep], d[keep], c[keep]
+        if len(rows) == 0:
+            return best_t, best_b
+        # the closest; ties (within 1e-14 relative) to the smallest global triangle (any partition alike)
+        shortest = np.full(n, np.inf)
+        np.minimum.at(shortest, rows, d)
+        tie = d <= shortest[rows] + 1e-14 * np.maximum(shortest[rows], 1.0)
+        ordered = np.sort(self._g_tri, axis=1)
+        size = int(self._g_tri.max(initial=0)) + 1
+        triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
+        key = np.where(tie, triangle_key[cols], np.iinfo(np.int64).max)
+        smallest = np.full(n, np.iinfo(np.int64).max)
+        np.minimum.at(smallest, rows, key)
+        chosen = tie & (key == smallest[rows])
+        best_t[rows[chosen]], best_b[rows[chosen]] = cols[chosen], bary[chosen]
+        side[rows[chosen]] = np.sign(c[chosen])
+        return best_t, best_b
+
+    def _sides(self, best_t: np.ndarray, best_b: np.ndarray) -> np.ndarray | None:
+        return self._side
+
+    def report(self) -> dict[str, Any]:
+        """MembranePairContact.report (force: on the slave nodes, master_force: its reaction on the triangles; they
+        cancel) and paired_points (nodes with a partner, pressed or not), the same on every rank. Collective."""
+        report = super().report()
+        report["paired_points"] = int(np.count_nonzero(self._side))  # every rank pairs every node
+        return report
 
 
 def pair_contacts(problem: MembraneProblem, slave: str, master: str, k: float, augmented: bool = False,

@@ -1,0 +1,195 @@
+"""The phases of a membrane run around its inflation (model.experiments.membrane_run): [extrusion] before it (the
+disc extruded, inflated without contact to a first volume and smoothed into a new rest shape) and [muscle] after
+it (the final surface closed with its flat base, tetrahedralised, given Laplace fibres and written with a solid
+run's configuration, muscle.toml)."""
+
+from __future__ import annotations
+
+import gc
+import json
+import logging
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+
+from forms.membrane import MembraneLaw
+from meshes.data import MeshData, read_msh, write_msh
+from meshes.membrane import (
+    SurfaceMeshData,
+    extrude,
+    smooth_rest_shape,
+)
+from model.config.membrane import MUSCLE_FILES, MembraneRunConfig
+from model.domain.distribute import build_domain
+from model.errors import ConfigError, SolveFailed
+from model.experiments.membrane import cell_values, close_and_mesh, deformed_points
+from model.problem.membrane import (
+    MembraneProblem,
+    axis_orientation,
+)
+from model.solvers.membrane import inflate_to_volume
+
+log = logging.getLogger(__name__)
+
+__all__ = ['muscle_document']
+
+
+def _extrusion(config: MembraneRunConfig, law: MembraneLaw, flat: SurfaceMeshData | None, num_points: int,
+               comm: MPI.Comm) -> tuple[SurfaceMeshData | None, dict[str, Any]]:
+    """[extrusion]: the disc ``flat`` extruded by ``offset`` (the clamped rim stays), inflated without contact to
+    ``first_volume`` (inflate_to_volume, [inflation]'s dp and cutbacks), its free nodes smoothed and relaxed down to
+    ``rest_volume`` (meshes.membrane.smooth_rest_shape): the new rest shape (rank 0, else None) and summary.json's
+    "extrusion". SolveFailed when the first phase's Newton fails. Collective."""
+    e, m, inflation = config.extrusion, config.membrane, config.inflation
+    rim = np.unique(flat.facets[flat.facet_tags == flat.boundary_names["rim"]]) if comm.rank == 0 else None
+    extruded = extrude(flat, e.offset, rim) if comm.rank == 0 else None
+    first = MembraneProblem(build_domain(comm, extruded), law, axis_orientation(), m.border,
+                            quadrature_degree=m.quadrature_degree)
+    dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
+    try:
+        steps = inflate_to_volume(first, e.first_volume, dp, max_steps=inflation.max_steps,
+                                  cutbacks=inflation.cutbacks)
+    except RuntimeError as err:
+        raise SolveFailed(f"extrusion: the first inflation failed: {err}") from None
+    inflated = deformed_points(first, num_points)
+    rest, record = None, None
+    if comm.rank == 0:
+        smoothing = smooth_rest_shape(inflated, flat.cells, rim, e.rest_volume)
+        rest = SurfaceMeshData(smoothing.points, flat.cells, flat.cell_tags, flat.facets, flat.facet_tags,
+                               flat.region_names, flat.boundary_names)
+        record = {"offset": e.offset, "first_volume": e.first_volume, "rest_volume": e.rest_volume,
+                  "first_steps": [{"pressure": s.pressure, "volume": s.volume, "energy": s.energy,
+                                   "iterations": s.iterations} for s in steps],
+                  "smoothing_iterations": smoothing.iterations, "smoothed_volume": float(smoothing.volumes[-1])}
+    record = comm.bcast(record)
+    log.info("extrusion: V = %.6g at p = %.6g after %d steps; smoothed to V = %.6g in %d iterations",
+             steps[-1].volume, steps[-1].pressure, len(steps), record["smoothed_volume"],
+             record["smoothing_iterations"])
+    return rest, record
+
+
+def _ends(config: MembraneRunConfig, data: SurfaceMeshData) -> tuple[int, int]:
+    """[muscle]: how many base (rest) triangles have their centroid at x < -end radius and at x > end radius."""
+    x = data.points[data.cells].mean(axis=1)[:, 0]
+    limit = config.muscle.end * config.membrane.radius
+    return int(np.count_nonzero(x < -limit)), int(np.count_nonzero(x > limit))
+
+
+def _check_ends(config: MembraneRunConfig, data: SurfaceMeshData | None, comm: MPI.Comm) -> None:
+    """ConfigError before any solve when an end of the muscle has no base triangle (no fibre origin or insertion)."""
+    counts = comm.bcast(_ends(config, data) if comm.rank == 0 else None)
+    if min(counts) == 0:
+        m = config.membrane
+        raise ConfigError(f"muscle.end: no base triangle has its centroid beyond x = +-{config.muscle.end:g} radius "
+                          f"(membrane.size {m.size:g}, radius {m.radius:g}): lower end or size")
+
+
+def muscle_document(config: MembraneRunConfig, out: Path) -> str:
+    """muscle.toml's text: a solid run (model.config.RunConfig) of the closed patch's tetrahedra (muscle.msh)
+    with the Laplace fibres of fibres.npy, the activation ramped from 0 to ``activation`` in ``steps`` load steps
+    and the ``fixed`` boundaries clamped; its results go to OUT/contraction, an absolute path, so that the file
+    runs from any working directory (the command line's --out wins)."""
+    m = config.muscle
+    lines = [
+        "# The muscle of a membrane run ([muscle], model.experiments.membrane_run; docs/membranes.md): the inflated",
+        "# disc patch closed with its flat base, filled with tetrahedra (muscle.msh: volume muscle; surfaces patch,",
+        "# base, origin, insertion) and given the Laplace fibre field from origin to insertion (fibres.npy).",
+        f"#   python -m model run {(out / MUSCLE_FILES['config']).as_posix()}",
+        "",
+        "[units]",
+        f"system = {json.dumps(config.units.system)}",
+        "",
+        "[mesh]",
+        f"file = {json.dumps(MUSCLE_FILES['mesh'])}",
+        "",
+        "[discretization]",
+        f"degree = {m.degree}",
+        "",
+        "[[material]]",
+        'region = "muscle"',
+        'law = "muscle"',
+        'isotropic = "stvk"',
+        f"E = {float(m.young)!r}",
+        f"nu = {float(m.nu)!r}",
+        f"sigma_max = {float(m.sigma_max)!r}",
+        f'fibres = {{ type = "file", file = {json.dumps(MUSCLE_FILES["fibres"])} }}',
+        f"activation = [[0.0, 0.0], [1.0, {float(m.activation)!r}]]",
+    ]
+    for name in m.fixed:
+        lines += ["", "[[boundary]]", f"on = {json.dumps(name)}", 'type = "displacement"', "value = [0.0, 0.0, 0.0]"]
+    lines += ["", "[loading]", f"steps = {m.steps}", "", "[output]",
+              f"dir = {json.dumps((out / 'contraction').resolve().as_posix())}", ""]
+    return "\n".join(lines)
+
+
+@contextmanager
+def _collected() -> Iterator[None]:
+    """Collect the garbage on every rank now and not inside: the block has rank-0-only work (gmsh, meshio, the
+    configuration reader) while the other ranks wait in a collective, and a PETSc object left to the garbage
+    collector (a Newton with MUMPS: its destroy is collective) destroyed there on rank 0 alone would hang."""
+    gc.collect()
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def _muscle(config: MembraneRunConfig, problem: MembraneProblem, data: SurfaceMeshData | None, num_points: int,
+            out: Path, comm: MPI.Comm) -> dict[str, Any]:
+    """[muscle]: close the final surface, tetrahedralise, Laplace fibres, write the files (module docstring).
+    Collective; returns summary.json's "muscle"."""
+    with _collected():
+        return _close_and_write(config, problem, data, num_points, out, comm)
+
+
+def _close_and_write(config: MembraneRunConfig, problem: MembraneProblem, data: SurfaceMeshData | None,
+                     num_points: int, out: Path, comm: MPI.Comm) -> dict[str, Any]:
+    m, muscle = config.membrane, config.muscle
+    tet_size = muscle.tet_size if muscle.tet_size is not None else m.size
+    deformed = deformed_points(problem, num_points)
+    _, fibres, mesh_data = close_and_mesh(data, deformed, m.radius, muscle.end, tet_size, comm)
+    a0 = cell_values(fibres)
+    enclosed = problem.volume()
+    record, error = None, None
+    if comm.rank == 0:
+        try:
+            record = _write_muscle(config, data, mesh_data, a0, enclosed, tet_size, out)
+        except (OSError, RuntimeError, ValueError) as err:  # ConfigError is a ValueError: muscle.toml refused
+            error = f"muscle: {err}"
+    record, error = comm.bcast((record, error))
+    if error:
+        raise RuntimeError(error)
+    return record
+
+
+def _write_muscle(config: MembraneRunConfig, data: SurfaceMeshData, mesh_data: MeshData, a0: np.ndarray,
+                  enclosed: float, tet_size: float, out: Path) -> dict[str, Any]:
+    """Rank 0: muscle.msh, fibres.npy, muscle.vtu, muscle.toml (read back by the solid run's reader)."""
+    import meshio
+
+    from model.config.document import load
+
+    muscle = config.muscle
+    write_msh(mesh_data, out / MUSCLE_FILES["mesh"])
+    if not np.array_equal(read_msh(out / MUSCLE_FILES["mesh"]).cells, mesh_data.cells):
+        raise RuntimeError("muscle.msh: the cells read back in another order than fibres.npy's")
+    np.save(out / MUSCLE_FILES["fibres"], a0)
+    meshio.Mesh(mesh_data.points, [("tetra", mesh_data.cells)],
+                cell_data={"fibre_direction": [a0]}).write(out / MUSCLE_FILES["vtu"])
+    (out / MUSCLE_FILES["config"]).write_text(muscle_document(config, out))
+    load(out / MUSCLE_FILES["config"])  # the solid run's reader takes it (a ConfigError would be a bug here)
+    origin, insertion = _ends(config, data)
+    record = {**MUSCLE_FILES, "tetrahedra": mesh_data.num_cells, "points": mesh_data.num_points,
+              "tet_size": tet_size, "end": muscle.end, "volume": mesh_data.volume(), "enclosed_volume": enclosed,
+              "origin_triangles": origin, "insertion_triangles": insertion,
+              "boundaries": sorted(mesh_data.boundary_names), "fixed": list(muscle.fixed)}
+    log.info("muscle: %d tetrahedra, volume %.9g (membrane %.9g); %s", mesh_data.num_cells, record["volume"],
+             enclosed, out / MUSCLE_FILES["config"])
+    return record
