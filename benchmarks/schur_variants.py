@@ -9,8 +9,11 @@ clamped, sheared by a dead traction, 2 load steps; 13 312 dofs at N = 6, 121 203
 added to ``solver.petsc_options``; ``--shear a --bulk b`` replace the Schur preconditioner's weight 1/mu + 1/kappa
 by a/mu + b/kappa (Sp's compliances are patched in model.solvers.linear.MixedFields for this process only).
 Printed per nu (rank 0): dofs, the linear iterations of every Newton iteration and their mean, wall and CPU time
-(the largest over the ranks) and the PETSc flops of the run (summed over the ranks: the linear algebra's work,
-machine-independent, unlike times on a shared machine). Asserts nothing (docs/solvers.md, "Against the targets").
+(the largest over the ranks), the PETSc flops of the run (summed over the ranks: the linear algebra's work,
+machine-independent, unlike times on a shared machine) and the peak resident memory so far (VmHWM summed over the
+ranks, warm-up and earlier nu included: run one nu for one run's peak). ``--conformal`` adds the three special
+conformal fields to the u block's near null space (ten modes). Asserts nothing (docs/solvers.md, "Against the
+targets").
 """
 
 from __future__ import annotations
@@ -30,6 +33,45 @@ for entry in (ROOT, ROOT / "benchmarks"):
         sys.path.insert(0, str(entry))
 
 
+def _hwm_mb() -> int:
+    """This process's peak resident memory so far (VmHWM, MB; 0 where /proc is missing)."""
+    try:
+        with open("/proc/self/status") as lines:
+            return next((int(line.split()[1]) // 1024 for line in lines if line.startswith("VmHWM:")), 0)
+    except OSError:
+        return 0
+
+
+def _conformal_modes(space: Any, vectors: list[Any]) -> list[Any]:
+    """``vectors`` (orthonormal, owned entries of a blocked vector space) and the three special conformal fields
+    v_b(x) = 2 (b . x) x - |x|^2 b (b = e_1, e_2, e_3; x centred on the dofs' bounding box: sym grad v_b =
+    2 (b . x) I, no deviatoric strain), orthonormalised against them and each other (modified Gram-Schmidt)."""
+    import numpy as np
+    from mpi4py import MPI
+
+    imap, bs = space.dofmap.index_map, space.dofmap.index_map_bs
+    owned = imap.size_local
+    x = space.tabulate_dof_coordinates()[:owned, :3]
+    low = x.min(axis=0) if owned else np.full(3, np.inf)
+    high = x.max(axis=0) if owned else np.full(3, -np.inf)
+    comm = space.mesh.comm
+    comm.Allreduce(MPI.IN_PLACE, low, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, high, op=MPI.MAX)
+    x = x - 0.5 * (low + high)
+    square = np.sum(x * x, axis=1)
+    out = list(vectors)
+    for b in range(3):
+        v = vectors[0].duplicate()
+        with v.localForm() as local:
+            for i in range(3):
+                local.array[i:owned * bs:bs] = 2.0 * x[:, b] * x[:, i] - (square if i == b else 0.0)
+        for w in out:
+            v.axpy(-w.dot(v), w)
+        v.normalize()
+        out.append(v)
+    return out
+
+
 def main() -> None:
     from mpi4py import MPI
     from petsc4py import PETSc
@@ -45,6 +87,8 @@ def main() -> None:
     parser.add_argument("--options", default="{}", help="PETSc options (JSON) added to the preset's")
     parser.add_argument("--shear", type=float, default=1.0, help="a of the Schur weight a/mu + b/kappa")
     parser.add_argument("--bulk", type=float, default=1.0, help="b of the Schur weight a/mu + b/kappa")
+    parser.add_argument("--conformal", action="store_true",
+                        help="add the three special conformal fields to the u block's near null space (10 modes)")
     args = parser.parse_args()
     options: dict[str, Any] = json.loads(args.options)
 
@@ -57,6 +101,13 @@ def main() -> None:
         return assemble(self, problem)
 
     linear.MixedFields._weighted_mass = weighted_mass  # type: ignore[method-assign]
+    if args.conformal:
+        modes = linear.vector_rigid_body_modes
+
+        def with_conformal(space: Any, dilation: bool = False) -> list[PETSc.Vec]:
+            return _conformal_modes(space, modes(space, dilation=dilation))
+
+        linear.vector_rigid_body_modes = with_conformal  # type: ignore[assignment]
     comm = MPI.COMM_WORLD
     with tempfile.TemporaryDirectory() as scratch:
         out = Path(comm.bcast(scratch if comm.rank == 0 else None))
@@ -74,12 +125,13 @@ def main() -> None:
             wall = comm.allreduce(time.perf_counter() - wall, op=MPI.MAX)
             cpu = comm.allreduce(time.process_time() - cpu, op=MPI.MAX)
             flops = comm.allreduce(PETSc.Log.getFlops() - flops, op=MPI.SUM)
+            peak = comm.allreduce(_hwm_mb(), op=MPI.SUM)
             counts = [c for step in summary["steps"] for c in step.get("linear_iterations_per_newton", [])]
             if comm.rank == 0:
                 print(f"n = {args.n}, {summary['dofs']} dofs, {comm.size} rank(s), nu = {nu}, weight "
                       f"{args.shear}/mu + {args.bulk}/kappa, {json.dumps(options)}: {summary['status']}; linear its "
                       f"{counts}, mean {sum(counts) / max(len(counts), 1):.2f}; wall {wall:.1f} s, CPU {cpu:.1f} s, "
-                      f"{flops / 1e9:.1f} GFlop", flush=True)
+                      f"{flops / 1e9:.1f} GFlop, peak {peak} MB (VmHWM summed over ranks)", flush=True)
         comm.Barrier()
 
 
