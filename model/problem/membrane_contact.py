@@ -585,15 +585,9 @@ class MembraneSelfContact(MembranePairContact):
         count, tri = self._n_master_nodes, self._tri_nodes
         if not np.array_equal(np.unique(self._g_tri), self._slave_global):
             raise RuntimeError("membrane self-contact: the slave nodes are not the nodes of the region's triangles")
-        rows = np.concatenate([tri[:, i] for i in (0, 1, 2, 1, 2, 0)])
-        cols = np.concatenate([tri[:, i] for i in (1, 2, 0, 0, 1, 2)])
-        step = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(count, count))
-        step = step + csr_matrix((np.ones(count), (np.arange(count), np.arange(count))), shape=(count, count))
-        near = csr_matrix((np.ones(count), (np.arange(count), np.arange(count))), shape=(count, count))
-        for _ in range(self.rings - 1):
-            near = (near @ step).tocsr()
-        near = near.tocoo()
-        self.neighbourhood = np.sort(near.row.astype(np.int64) * count + near.col.astype(np.int64))
+        from model.problem.self_contact import neighbourhood_keys
+
+        self.neighbourhood = neighbourhood_keys(tri, count, self.rings)
         X = self._X_tri
         face = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
         vertex = np.zeros((count, 3))
@@ -609,9 +603,8 @@ class MembraneSelfContact(MembranePairContact):
     def _closest(self, xs: np.ndarray, x_tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The partner of each node by the rule (class docstring), its barycentric coordinates; the side s (0: no
         partner) kept for ``_sides``."""
-        from scipy.spatial import cKDTree
-
         from model.problem.body_contact import closest_points_on_triangles
+        from model.problem.self_contact import candidate_pairs, closest_candidates
 
         n = len(xs)
         best_t, best_b, side = np.zeros(n, dtype=np.int64), np.zeros((n, 3)), np.zeros(n)
@@ -619,18 +612,8 @@ class MembraneSelfContact(MembranePairContact):
         if n == 0 or not hasattr(self, "neighbourhood"):  # the first pairing, before _topology: none
             return best_t, best_b
         count, tri = self._n_master_nodes, self._tri_nodes
-        centroids = x_tri.mean(axis=1)
-        radius = self.reach + float(np.linalg.norm(x_tri - centroids[:, None], axis=2).max())
-        lists = cKDTree(centroids).query_ball_point(xs, radius)
-        lengths = np.array([len(c) for c in lists], dtype=np.int64)
-        rows = np.repeat(np.arange(n), lengths)
-        cols = np.concatenate([np.asarray(c, dtype=np.int64) for c in lists]) if lengths.sum() else \
-            np.zeros(0, dtype=np.int64)
-        # (1) neighbourhood: a vertex of T within rings - 1 edges of the node (slave row i is master node i)
-        keys = rows[:, None] * count + tri[cols]
-        position = np.minimum(np.searchsorted(self.neighbourhood, keys), len(self.neighbourhood) - 1)
-        keep = ~np.any(self.neighbourhood[position] == keys, axis=1)
-        rows, cols = rows[keep], cols[keep]
+        # (1) neighbourhood: no vertex of T within rings - 1 edges of the node (slave row i is master node i)
+        rows, cols = candidate_pairs(xs, x_tri, self.reach, np.arange(n), tri, self.neighbourhood, count)
         closest, bary = closest_points_on_triangles(xs[rows], x_tri[cols])
         d = np.linalg.norm(xs[rows] - closest, axis=1)
         # (2) reach; (3) a side at rest
@@ -643,17 +626,7 @@ class MembraneSelfContact(MembranePairContact):
         rows, cols, bary, d, c = rows[keep], cols[keep], bary[keep], d[keep], c[keep]
         if len(rows) == 0:
             return best_t, best_b
-        # the closest; ties (within 1e-14 relative) to the smallest global triangle (any partition alike)
-        shortest = np.full(n, np.inf)
-        np.minimum.at(shortest, rows, d)
-        tie = d <= shortest[rows] + 1e-14 * np.maximum(shortest[rows], 1.0)
-        ordered = np.sort(self._g_tri, axis=1)
-        size = int(self._g_tri.max(initial=0)) + 1
-        triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
-        key = np.where(tie, triangle_key[cols], np.iinfo(np.int64).max)
-        smallest = np.full(n, np.iinfo(np.int64).max)
-        np.minimum.at(smallest, rows, key)
-        chosen = tie & (key == smallest[rows])
+        chosen = closest_candidates(n, rows, cols, d, self._g_tri)  # ties to the smallest global triangle
         best_t[rows[chosen]], best_b[rows[chosen]] = cols[chosen], bary[chosen]
         side[rows[chosen]] = np.sign(c[chosen])
         return best_t, best_b

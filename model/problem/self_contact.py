@@ -53,6 +53,55 @@ log = logging.getLogger(__name__)
 FACING = 0.5
 
 
+def neighbourhood_keys(tri: np.ndarray, count: int, rings: int) -> np.ndarray:
+    """The pairs of the ``count`` nodes of the triangles ``tri`` (local node numbers) within rings - 1 edges of each
+    other: the nonzeros of (I + A)^(rings - 1), A the edge adjacency, as sorted keys row * count + column."""
+    rows = np.concatenate([tri[:, i] for i in (0, 1, 2, 1, 2, 0)])
+    cols = np.concatenate([tri[:, i] for i in (1, 2, 0, 0, 1, 2)])
+    step = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(count, count)) + sp.identity(count, format="csr")
+    near = sp.identity(count, format="csr")
+    for _ in range(rings - 1):
+        near = (near @ step).tocsr()
+    near = near.tocoo()
+    return np.sort(near.row.astype(np.int64) * count + near.col.astype(np.int64))
+
+
+def candidate_pairs(xs: np.ndarray, x_tri: np.ndarray, reach: float, node_rows: np.ndarray, tri: np.ndarray,
+                    neighbourhood: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """(slave row, triangle) candidates: the triangles whose centroid lies within ``reach`` plus the largest
+    centroid-to-vertex distance of the triangles of each point ``xs`` (a k-d tree ball query), less those with a
+    vertex in the point's neighbourhood (``neighbourhood_keys``; ``node_rows``: each point's node number there)."""
+    from scipy.spatial import cKDTree
+
+    centroids = x_tri.mean(axis=1)
+    radius = reach + float(np.linalg.norm(x_tri - centroids[:, None], axis=2).max())
+    lists = cKDTree(centroids).query_ball_point(xs, radius)
+    lengths = np.array([len(c) for c in lists], dtype=np.int64)
+    rows = np.repeat(np.arange(len(xs)), lengths)
+    cols = np.concatenate([np.asarray(c, dtype=np.int64) for c in lists]) if lengths.sum() else \
+        np.zeros(0, dtype=np.int64)
+    keys = node_rows[rows][:, None] * count + tri[cols]
+    position = np.minimum(np.searchsorted(neighbourhood, keys), len(neighbourhood) - 1)
+    keep = ~np.any(neighbourhood[position] == keys, axis=1)
+    return rows[keep], cols[keep]
+
+
+def closest_candidates(n: int, rows: np.ndarray, cols: np.ndarray, d: np.ndarray, g_tri: np.ndarray) -> np.ndarray:
+    """Mask of the candidates (slave row, triangle, distance d) that are each of the ``n`` slave points' closest;
+    ties (equal distances within 1e-14 relative) go to the smallest global triangle (``g_tri``: its global vertex
+    numbers), so the choice is the same on any partition."""
+    shortest = np.full(n, np.inf)
+    np.minimum.at(shortest, rows, d)
+    tie = d <= shortest[rows] + 1e-14 * np.maximum(shortest[rows], 1.0)
+    ordered = np.sort(g_tri, axis=1)
+    size = int(g_tri.max(initial=0)) + 1
+    triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
+    key = np.where(tie, triangle_key[cols], np.iinfo(np.int64).max)
+    smallest = np.full(n, np.iinfo(np.int64).max)
+    np.minimum.at(smallest, rows, key)
+    return tie & (key == smallest[rows])
+
+
 class SelfContact(BodyContact):
     """Penalty self-contact of the surface ``surface`` (slave = master; module docstring for the exclusion rule).
     ``rings`` >= 1 (integer) and ``reach`` > 0 (a length; None: the mean rest edge length of the surface) set the
@@ -83,15 +132,7 @@ class SelfContact(BodyContact):
         self.nodes = np.unique(g_tri)
         count = len(self.nodes)
         tri = np.searchsorted(self.nodes, g_tri)
-        rows = np.concatenate([tri[:, i] for i in (0, 1, 2, 1, 2, 0)])
-        cols = np.concatenate([tri[:, i] for i in (1, 2, 0, 0, 1, 2)])
-        step = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(count, count)) + sp.identity(count,
-                                                                                                      format="csr")
-        near = sp.identity(count, format="csr")
-        for _ in range(self.rings - 1):
-            near = (near @ step).tocsr()
-        near = near.tocoo()
-        self.neighbourhood = np.sort(near.row.astype(np.int64) * count + near.col.astype(np.int64))
+        self.neighbourhood = neighbourhood_keys(tri, count, self.rings)
         imap = self.V.dofmap.index_map
         global_slave = np.asarray(imap.local_to_global(self.slave_blocks.astype(np.int32)), dtype=np.int64)
         self.slave_rows = np.searchsorted(self.nodes, global_slave)
@@ -106,8 +147,6 @@ class SelfContact(BodyContact):
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The closest triangle of the surface to each slave node that passes the exclusion rule (module
         docstring), its barycentric coordinates, and whether there is one."""
-        from scipy.spatial import cKDTree
-
         n = len(xs)
         best_t, best_b, paired = np.zeros(n, dtype=np.int64), np.zeros((n, 3)), np.zeros(n, dtype=bool)
         if n == 0 or len(x_tri) == 0:
@@ -119,38 +158,18 @@ class SelfContact(BodyContact):
         np.add.at(nodal, tri.ravel(), np.repeat(faces, 3, axis=0))
         nodal /= np.maximum(np.linalg.norm(nodal, axis=1, keepdims=True), 1e-300)
         n_tri = faces / np.maximum(np.linalg.norm(faces, axis=1, keepdims=True), 1e-300)
-        centroids = x_tri.mean(axis=1)
-        radius = self.reach + float(np.linalg.norm(x_tri - centroids[:, None], axis=2).max())
-        lists = cKDTree(centroids).query_ball_point(xs, radius)
-        lengths = np.array([len(c) for c in lists], dtype=np.int64)
-        rows = np.repeat(np.arange(n), lengths)
-        cols = np.concatenate([np.asarray(c, dtype=np.int64) for c in lists]) if lengths.sum() else \
-            np.zeros(0, dtype=np.int64)
-        # (1) neighbourhood: a vertex of T within rings - 1 edges of the node
-        keys = self.slave_rows[rows][:, None] * count + tri[cols]
-        position = np.minimum(np.searchsorted(self.neighbourhood, keys), len(self.neighbourhood) - 1)
-        near = np.any(self.neighbourhood[position] == keys, axis=1)
+        # (1) neighbourhood: no vertex of T within rings - 1 edges of the node
+        rows, cols = candidate_pairs(xs, x_tri, self.reach, self.slave_rows, tri, self.neighbourhood, count)
         # (2) facing
         facing = np.einsum("ij,ij->i", nodal[self.slave_rows[rows]], n_tri[cols]) < -FACING
-        keep = ~near & facing
-        rows, cols = rows[keep], cols[keep]
+        rows, cols = rows[facing], cols[facing]
         closest, bary = closest_points_on_triangles(xs[rows], x_tri[cols])
         d = np.linalg.norm(xs[rows] - closest, axis=1)
         keep = d <= self.reach  # (3) reach
         rows, cols, bary, d = rows[keep], cols[keep], bary[keep], d[keep]
         if len(rows) == 0:
             return best_t, best_b, paired
-        # the closest; ties (within 1e-14 relative) to the smallest global triangle (any partition alike)
-        shortest = np.full(n, np.inf)
-        np.minimum.at(shortest, rows, d)
-        tie = d <= shortest[rows] + 1e-14 * np.maximum(shortest[rows], 1.0)
-        ordered = np.sort(g_tri, axis=1)
-        size = int(g_tri.max(initial=0)) + 1
-        triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
-        key = np.where(tie, triangle_key[cols], np.iinfo(np.int64).max)
-        smallest = np.full(n, np.iinfo(np.int64).max)
-        np.minimum.at(smallest, rows, key)
-        chosen = tie & (key == smallest[rows])
+        chosen = closest_candidates(n, rows, cols, d, g_tri)  # ties to the smallest global triangle
         best_t[rows[chosen]] = cols[chosen]
         best_b[rows[chosen]] = bary[chosen]
         paired[rows[chosen]] = True
