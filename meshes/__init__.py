@@ -28,9 +28,9 @@ sphere_pair upper lower (two ball octants touching at the     <body>_xmin <body>
             origin: Hertz contact of deformable spheres)      <body>_sphere <body>_surface
 slotted_    body (a C: two arms across a thin slot; self-     xmin xmax ymin ymax zmin zmax slot_lower slot_upper
 block       contact)                                          slot_end slot surface
-twin_       a_belly a_tendon b_belly b_tendon (two separate      a_origin a_insertion a_lateral a_surface (same for b)
-muscles     fusiform muscles, mirror images about x = 0, their
-            bellies gap apart: contact of curved bellies)
+twin_       a_belly a_tendon b_belly b_tendon (two separate   a_origin a_insertion a_lateral a_surface (same for b)
+muscles     fusiform muscles, mirror images about x = 0,
+            their bellies gap apart: curved bellies' contact)
 =========== ================================================ =======================
 
 A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
