@@ -64,6 +64,7 @@ def runs() -> dict[str, object]:
     """The walls first (the plane obstacles' forms are compiled before any pair's), then the pairs."""
     out: dict[str, object] = {f"plane{k:g}": run_twin(plane_raw(WALL_FACTOR * k)) for k in K}
     out.update({f"twin{k:g}": run_twin(twin_raw(k)) for k in K})
+    out["augmented"] = run_twin(twin_raw(K[0], augmented=True))
     out["low"] = run_twin(twin_raw(K[0], activation=0.03))
     out["low_free"] = run_twin(twin_raw(K[0], activation=0.03, contact=False))
     return out
@@ -100,3 +101,17 @@ def test_a_low_activation_leaves_the_gap_open(runs: dict) -> None:
     assert all(r["active_points"] == 0 and r["max_penetration"] == 0.0 for r in low.reports)
     assert np.abs(free.u).max() > 1e-5
     assert np.abs(low.u - free.u).max() < 1e-12
+
+
+def test_augmented_pairs_reach_the_penalties_limit(runs: dict) -> None:
+    """augmented = true (Uzawa updates of both pairs' pressures): mirror-symmetric, penetration below 1e-9 m, and
+    the contact force is the two penalties' 1/k extrapolation to k -> infinity, f(1e11) + (f(1e11) - f(1e10)) / 9
+    (to 1e-4)."""
+    aug = runs["augmented"]
+    assert aug.completed
+    ia, ib = mirror_pairs(aug.X)
+    assert np.abs(aug.u[ia] - aug.u[ib] * M).max() < 1e-10 * np.abs(aug.u).max()
+    assert all(0.0 < r["max_penetration"] < 1e-9 for r in aug.reports)
+    f10, f11 = (runs[f"twin{k:g}"].body_force["b"][0] for k in K)
+    assert aug.body_force["b"][0] == pytest.approx(f11 + (f11 - f10) / 9.0, rel=1e-4)
+    assert np.abs(aug.body_force["a"] + aug.body_force["b"]).max() < 1e-10 * aug.body_force["b"][0]
