@@ -28,6 +28,9 @@ sphere_pair upper lower (two ball octants touching at the     <body>_xmin <body>
             origin: Hertz contact of deformable spheres)      <body>_sphere <body>_surface
 slotted_    body (a C: two arms across a thin slot; self-     xmin xmax ymin ymax zmin zmax slot_lower slot_upper
 block       contact)                                          slot_end slot surface
+twin_       a_belly a_tendon b_belly b_tendon (two separate   a_origin a_insertion a_lateral a_surface (same for b)
+muscles     fusiform muscles, mirror images about x = 0,
+            their bellies gap apart: curved bellies' contact)
 =========== ================================================ =======================
 
 A plane triangle mesh (not a [mesh] generator: the elasticity pipeline is 3D): ``meshes.gingerbread.gingerbread``
@@ -60,6 +63,7 @@ from meshes.layered_arm import layered_arm
 from meshes.slotted import slotted_block
 from meshes.sphere import sphere, sphere_pair
 from meshes.trunk import trunk
+from meshes.twin_muscles import twin_muscles
 
 __all__ = [
     "GENERATORS",
@@ -82,6 +86,7 @@ __all__ = [
     "sphere_pair",
     "stacked_blocks",
     "trunk",
+    "twin_muscles",
     "write_msh",
 ]
 
@@ -98,6 +103,7 @@ GENERATORS: dict[str, Callable[..., MeshData]] = {
     "stacked_blocks": stacked_blocks,
     "sphere_pair": sphere_pair,
     "slotted_block": slotted_block,
+    "twin_muscles": twin_muscles,
 }
 
 

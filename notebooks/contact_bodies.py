@@ -199,3 +199,43 @@ if plt is not None:
                       f"normal force {slot['normal_force']:.0f}", fontsize=10)
     fig.tight_layout()
     fig.savefig(OUT / "self_contact_slot.png", dpi=110)
+
+# %% [markdown]
+# ## Curved bellies in contact: two activated muscles press on each other
+#
+# `examples/twin_muscles.toml` (docs/layers.md, "Curved bellies in contact"): two fusiform muscles, mirror images
+# about x = 0, bellies 0.05 mm apart, activated to 1 with the ends clamped; a_lateral and b_lateral in penalty
+# contact both ways. By the mirror symmetry the answer is each muscle against a rigid wall x = 0 with the penalty
+# 4 k (`model.experiments.twin_muscles`). Below: the nodes near the plane y = 0 around the bellies' mid-length,
+# x against z, at rest and activated (the contact is one node pair on this coarse mesh).
+
+# %%
+from model.experiments.twin_muscles import WALL_FACTOR, mirror_pairs, plane_raw, run_twin, twin_raw  # noqa: E402
+
+wall = run_twin(plane_raw(WALL_FACTOR * 1e10))
+twin = run_twin(twin_raw(1e10))
+ia, ib = mirror_pairs(twin.X)
+scale = np.abs(wall.u).max()
+mirror = np.abs(twin.u[ia] - twin.u[ib] * np.array([-1.0, 1.0, 1.0])).max() / scale
+against_wall = np.abs(twin.u[ib] - wall.u[ib]).max() / scale
+print(f"force on b {twin.body_force['b'][0]:.5f} N (wall {wall.reports[1]['force'][0]:.5f} N); max |u| "
+      f"{scale * 1e3:.3f} mm; off the mirror image {mirror:.1e}, off the wall run {against_wall:.1e} of max |u|; "
+      f"penetration {twin.reports[0]['max_penetration'] * 1e6:.2f} um")
+assert mirror < 1e-10 and against_wall < 1e-3
+
+# %%
+if plt is not None:
+    near = (np.abs(twin.X[:, 1]) < 1.5e-3) & (np.abs(twin.X[:, 0]) < 1.5e-3)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for points, style, label in ((twin.X, "o", "at rest"), (twin.X + twin.u, ".", "activated")):
+        for side, colour in ((twin.X[:, 0] < 0, "tab:blue"), (twin.X[:, 0] > 0, "tab:orange")):
+            pick = near & side
+            ax.plot(points[pick, 2] * 1e3, points[pick, 0] * 1e3, style, color=colour, alpha=0.8,
+                    label=f"{'a' if colour == 'tab:blue' else 'b'} {label}")
+    ax.axhline(0.0, color="k", linewidth=0.5)
+    ax.set_xlabel("z (mm)")
+    ax.set_ylabel("x (mm)")
+    ax.set_title("twin muscles: nodes near y = 0 facing each other", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(OUT / "twin_muscles.png", dpi=110)

@@ -257,7 +257,7 @@ def run_config_snapshot(config: Any) -> dict[str, Any]:
 #: examples that use what the old parser did not have (a law of the user's own; a .geo mesh, probe snap)
 NEWER = ("guccione_beam", "spindle", "twisting_bar_render", "contact_bodies",
          "layered_arm", "layered_arm_touching", "layered_arm_flexion",
-         "layered_arm_gap", "self_contact_slot")  # keys the old parser did not have
+         "layered_arm_gap", "self_contact_slot", "twin_muscles")  # keys the old parser did not have
 OLD_EXAMPLES = [p for p in EXAMPLE_FILES if p.stem not in NEWER]
 
 

@@ -114,7 +114,7 @@ def muscle() -> MeshData:
 
 def test_registry_names() -> None:
     assert set(GENERATORS) == {"arm_segment", "box", "cylinder", "cook", "fusiform", "layered_arm", "sphere",
-                               "sphere_pair", "stacked_blocks", "trunk", "slotted_block"}
+                               "sphere_pair", "stacked_blocks", "trunk", "slotted_block", "twin_muscles"}
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
