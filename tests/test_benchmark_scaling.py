@@ -83,12 +83,12 @@ def test_schur_variants_script() -> None:
     more than 2 iterations); the full factorisation takes fewer iterations at both nu, each costing more flops
     (two u-block V-cycles); --shear reaches the Schur weight (other counts than the preset's); --conformal reaches
     the near null space (ten modes: other counts); the printed peak (VmHWM, MB) is that of a Python process with
-    PETSc loaded (over 50 MB) and never falls from one nu to the next."""
+    PETSc loaded (over 50 MB)."""
     preset = _variant()
     full = _variant("--options", json.dumps({"pc_fieldsplit_schur_fact_type": "full"}))
     scaled = _variant("--shear", "1.5")
     conformal = _variant("--conformal")
-    assert 50 < preset[0.3][2] <= preset[0.4999][2], preset
+    assert preset[0.3][2] > 50 and preset[0.4999][2] > 50, preset
     assert conformal[0.4999][0] != preset[0.4999][0], (conformal, preset)
     for nu in (0.3, 0.4999):
         counts, flops, _ = preset[nu]

@@ -134,7 +134,8 @@ def _bad_files(folder: Path) -> dict[str, Path]:
         meshio.Mesh(p, [("triangle", np.array([[0, 1, 2], [0, 1, 5]]))]).write(files["degenerate"])
         sphere = sphere_surface(1.0, 0.8)
         meshio.Mesh(sphere.points, [("triangle", sphere.cells)]).write(files["closed"])
-        # two fans of two triangles each, meeting only at the point (0.5, 0.5, 0): every edge in one triangle
+        # two fans, one triangle each at the point (0.5, 0.5, 0) (triangles 0 and 2; 1 and 3 hang on their far edges),
+        # meeting only there
         q = np.array([[0.5, 0.5, 0], [0, 0, 0], [1, 0, 0], [0.5, -0.5, 0.2], [0, 1, 0], [1, 1, 0], [0.5, 1.5, 0.2]])
         meshio.Mesh(q, [("triangle", np.array([[0, 1, 2], [1, 3, 2], [0, 5, 4], [4, 5, 6]]))]).write(
             files["bow_tie"])

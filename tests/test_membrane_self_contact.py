@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 from test_membrane_contact import STVK, _pressed_discs
 
 from meshes.membrane import closed_can
-from model.config.membrane import load_membrane
+from model.config.membrane import load_membrane, parse_membrane
 from model.domain.distribute import build_domain
 from model.errors import ConfigError
 from model.problem.membrane import MembraneProblem, triangle_orientation
@@ -102,6 +102,7 @@ def test_apart_is_the_answer_without_contact() -> None:
     ({"rings": 0}, r"^membrane self-contact: rings: 0 must be an integer >= 1$"),
     ({"reach": -1.0}, r"^membrane self-contact: reach: -1\.0 must be a finite number > 0$"),
     ({"region": "middle"}, r"^membrane self-contact: region: no region named 'middle'"),
+    ({"augmented": True}, r"^membrane self-contact: penalty only"),
 ])
 def test_bad_arguments(keys: dict, message: str) -> None:
     problem = _pressed_discs(H, BUMP)
@@ -132,6 +133,8 @@ def test_the_example(shared_tmp) -> None:  # noqa: ANN001
     ({"master": "upper"}, r"^contact\[0\]\.master: not with self_contact = true \(the surface is its own master\)$"),
     ({"two_pass": True}, r"^contact\[0\]\.two_pass: not with self_contact = true"),
     ({"augmented": True}, r"^contact\[0\]\.augmented: not with self_contact = true"),
+    ({"tolerance": 1e-6}, r"^contact\[0\]\.tolerance: not with self_contact = true \(penalty only: there is no "
+                          r"Uzawa tolerance\)$"),
     ({"surface": "top"}, r"^contact\[0\]\.surface: closed_can has no region 'top' \(regions: lower, upper, wall\)$"),
     ({"rings": 0}, r"^contact\[0\]\.rings: "),
     ({"reach": -0.1}, r"^contact\[0\]\.reach: "),
@@ -144,3 +147,20 @@ def test_bad_self_contact_keys(contact: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message) as err:
         load_membrane(CAN, {"contact": [{**base, **contact}]})
     assert "\n" not in str(err.value)
+
+
+def test_contact_names_and_surfaces() -> None:
+    """Two contacts with one name are refused (summary.json reports each by name); self-contact on the flat disc is
+    refused (no node lies off another triangle's plane at rest: it could never pair); surface = "all" spelled out is
+    the default's whole membrane."""
+    with pytest.raises(ConfigError, match=r"^contact\[1\]\.name: 'x' names two contacts") as err:
+        load_membrane(CAN, {"contact": [{"self_contact": True, "penalty": 10.0, "name": "x"},
+                                        {"self_contact": True, "penalty": 10.0, "surface": "lower", "name": "x"}]})
+    assert "\n" not in str(err.value)
+    with pytest.raises(ConfigError, match=r"^contact\[0\]\.self_contact: the disc is flat at rest"):
+        parse_membrane({"membrane": {"surface": "disc", "radius": 1.0, "size": 0.2, "law": "stvk", "young": 1.0,
+                                     "nu": 0.3, "thickness": 0.01},
+                        "contact": [{"self_contact": True, "penalty": 10.0}], "inflation": {"pressures": [1e-3]}},
+                       EXAMPLES)
+    config = load_membrane(CAN, {"contact": [{"self_contact": True, "penalty": 10.0, "surface": "all"}]})
+    assert config.contacts[0].region == "all" and config.contacts[0].label == "all-self"

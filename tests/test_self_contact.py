@@ -238,3 +238,26 @@ def test_exact_self_contact_converges_quadratically() -> None:
     assert exact["max_penetration"] == pytest.approx(default["max_penetration"], rel=1e-2)
     assert exact["normal_force"] == pytest.approx(default["normal_force"], rel=1e-3)
     assert np.abs(answers[1] - answers[0]).max() < 0.2 * default["max_penetration"]
+
+
+def test_ties_go_to_the_smallest_triangle_for_any_numbering() -> None:
+    """closest_candidates: the closest candidate of each point, ties (equal distances) to the triangle with the
+    smallest sorted global vertex triple; global numbers beyond 2^21 (where the arithmetic key would overflow int64)
+    give the same choice through the triples' rank."""
+    from model.problem.self_contact import closest_candidates
+
+    rng = np.random.default_rng(3)
+    g_tri = np.array([rng.choice(50, 3, replace=False) for _ in range(40)], dtype=np.int64)
+    rows = rng.integers(0, 6, 200)
+    cols = rng.integers(0, 40, 200)
+    d = rng.choice([0.5, 1.0, 2.0], 200)  # many exact ties
+    chosen = closest_candidates(6, rows, cols, d, g_tri)
+    for i in range(6):
+        mine = rows == i
+        if mine.any():
+            best = d[mine].min()
+            tied = cols[mine & (d == best)]
+            smallest = min(tied, key=lambda c: tuple(np.sort(g_tri[c])))
+            assert set(cols[chosen & mine]) == {smallest}
+    large = g_tri * 1_000_003 + 7  # the same order of the sorted triples, numbers up to 5e7 > 2^21
+    assert np.array_equal(closest_candidates(6, rows, cols, d, large), chosen)

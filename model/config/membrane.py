@@ -316,11 +316,12 @@ class ContactSection(Section):
     @model_validator(mode="after")
     def _pair(self) -> ContactSection:
         if self.self_contact:
-            for k in ("master", "two_pass", "augmented"):
+            for k in ("master", "two_pass", "augmented", "tolerance"):
                 if k in self.model_fields_set and getattr(self, k):
                     why = "the surface is its own master" if k == "master" else \
                         "self-contact already checks every node against the other side" if k == "two_pass" else \
-                        "penalty only: both sides' nodes held exactly over-constrain, as with two_pass"
+                        "penalty only: both sides' nodes held exactly over-constrain, as with two_pass" \
+                        if k == "augmented" else "penalty only: there is no Uzawa tolerance"
                     fail(f"not with self_contact = true ({why})", k)
             return self
         for k in ("rings", "reach"):
@@ -442,10 +443,21 @@ class MembraneRunConfig(Section):
             fail("needs an [[obstacle]] or a [[contact]] to touch", "inflation", "contact_fraction")
         if self.inflation.freeze_on_contact and not (self.obstacles or self.contacts):
             fail("needs an [[obstacle]] or a [[contact]] to touch", "inflation", "freeze_on_contact")
+        labels = [contact.label for contact in self.contacts]
+        for i, label in enumerate(labels):
+            if label in labels[:i]:
+                fail(f"{label!r} names two contacts (summary.json reports each by its name): give each its own "
+                     "name", "contact", i, "name")
+        if self.membrane.surface == "disc" and any(contact.self_contact for contact in self.contacts):
+            i = next(i for i, contact in enumerate(self.contacts) if contact.self_contact)
+            fail("the disc is flat at rest, so no node lies on either side of another triangle and none could pair "
+                 "(docs/membranes.md, self-contact of one membrane)", "contact", i, "self_contact")
         regions = self.membrane.regions
         for i, contact in enumerate(self.contacts if regions is not None else ()):  # a file's: when read
             for k in ("surface", "master"):
                 name = getattr(contact, k)
+                if contact.self_contact and k == "surface" and name == "all":
+                    continue  # the whole membrane, spelled out
                 if name is not None and name not in regions:
                     known = f"regions: {', '.join(regions)}" if regions else \
                         "no regions: membrane-membrane contact needs surface = 'facing_discs' or a .msh file's " \

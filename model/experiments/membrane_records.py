@@ -107,6 +107,8 @@ def _step_record(step: InflationStep, problem: MembraneProblem, config: Membrane
         record["pairs"] = [_pair_record(pair) for pair in pairs]
     else:
         record["centre_deflection"] = problem.max_component(2)
+        if pairs:
+            record["pairs"] = [_pair_record(pair) for pair in pairs]
         if m.law == "stvk":
             record["hencky_deflection"] = _hencky(m.nu).centre_deflection(m.radius, step.pressure, m.young,
                                                                            m.thickness)

@@ -144,7 +144,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         "pairs": [{"name": spec.label, "surface": spec.surface, "master": spec.master, "penalty": spec.penalty,
                    "augmented": spec.augmented, "two_pass": spec.two_pass,
                    **({"self_contact": True, "region": spec.region, "rings": spec.rings or 2,
-                       "reach": next(p.reach for p in pairs if p.name == spec.label)}
+                       "reach": next(p.reach for p in pairs
+                                     if isinstance(p, MembraneSelfContact) and p.name == spec.label)}
                       if spec.self_contact else {})} for spec in config.contacts],
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,

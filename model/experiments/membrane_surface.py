@@ -75,6 +75,8 @@ def _check_contacts(config: MembraneRunConfig, data: SurfaceMeshData) -> None:
     for i, contact in enumerate(config.contacts):
         for k in ("surface", "master"):
             name = getattr(contact, k)
+            if contact.self_contact and k == "surface" and name == "all":
+                continue  # the whole membrane, spelled out
             if name is not None and name not in data.region_names:
                 hint = "" if len(data.region_names) > 1 else \
                     "; name the sheets as physical surfaces of a .msh file"

@@ -553,8 +553,8 @@ class MembraneSelfContact(MembranePairContact):
     n the current master normal of MembranePairContact (the vertex normals interpolated at x*, oriented by the rest
     normals), i.e. the factor s on n makes the pair's rule "stay on the side the normal points to" into "stay on
     the side you came from" (with s = +1, as for two facing membranes, it is MembranePairContact's gap). A node
-    with no partner has n = 0: g = 0, no energy, force or tangent (its augmented multiplier stays at 0 from Uzawa:
-    max(lambda - k g, 0) with lambda held at the pairing's). Pi_c = int_region (k/2) min(g, 0)^2 dA (nodal rule).
+    with no partner has n = 0: g = 0, no energy, force or tangent. Pi_c = int_region (k/2) min(g, 0)^2 dA (nodal
+    rule; the penalty only: ``augmented`` is refused).
     The contact is internal: the slave force and the master force (report) cancel (sum_j b_j = 1).
 
     What the rule cannot see: a surface flat at rest that folds onto itself (every c = 0: no pair); a fold
@@ -567,6 +567,9 @@ class MembraneSelfContact(MembranePairContact):
             raise ValueError(f"membrane self-contact: rings: {rings!r} must be an integer >= 1")
         if reach is not None and not (isinstance(reach, (int, float)) and np.isfinite(reach) and reach > 0):
             raise ValueError(f"membrane self-contact: reach: {reach!r} must be a finite number > 0")
+        if augmented:
+            raise ValueError("membrane self-contact: penalty only (augmented: both sides' nodes held exactly "
+                             "over-constrain, as with two_pass)")
         self.rings, self._reach = int(rings), reach
         self._side: np.ndarray = np.zeros(0)
         super().__init__(problem, region, region, k, neighbours=neighbours, name=name or f"{region}-self",

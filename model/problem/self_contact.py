@@ -95,7 +95,10 @@ def closest_candidates(n: int, rows: np.ndarray, cols: np.ndarray, d: np.ndarray
     tie = d <= shortest[rows] + 1e-14 * np.maximum(shortest[rows], 1.0)
     ordered = np.sort(g_tri, axis=1)
     size = int(g_tri.max(initial=0)) + 1
-    triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
+    if size <= 2**21:  # (o0 size + o1) size + o2 < 2^63
+        triangle_key = (ordered[:, 0] * size + ordered[:, 1]) * size + ordered[:, 2]
+    else:  # the rank of the sorted vertex triple (the same order, no overflow)
+        triangle_key = np.unique(ordered, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
     key = np.where(tie, triangle_key[cols], np.iinfo(np.int64).max)
     smallest = np.full(n, np.iinfo(np.int64).max)
     np.minimum.at(smallest, rows, key)
