@@ -116,3 +116,41 @@ def test_augmented_pairs_reach_the_penalties_limit(runs: dict) -> None:
     f10, f11 = (runs[f"twin{k:g}"].body_force["b"][0] for k in K)
     assert aug.body_force["b"][0] == pytest.approx(f11 + (f11 - f10) / 9.0, rel=1e-4)
     assert np.abs(aug.body_force["a"] + aug.body_force["b"]).max() < 1e-10 * aug.body_force["b"][0]
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"exact": True}, "smooth_normals: not with exact = true"),
+    ({"master": None, "obstacle": "plane", "point": [0.0, 0.0, 0.0], "normal": [1.0, 0.0, 0.0]},
+     "smooth_normals: only with master"),
+    ({"master": None, "self_contact": True}, "smooth_normals: not with self_contact = true"),
+    ({"smooth_normals": "yes"}, "smooth_normals: must be true or false")])
+def test_smooth_normals_only_for_pairs_of_bodies(change: dict, message: str) -> None:
+    """[[contact]] smooth_normals: a one-line ConfigError with an obstacle, with self-contact, with exact."""
+    from model.config import ConfigError
+
+    raw = twin_raw(smooth_normals=True)
+    pair = {**raw["contact"][0], **change}
+    raw["contact"][0] = {k: v for k, v in pair.items() if v is not None}
+    with pytest.raises(ConfigError, match=message):
+        parse(raw)
+    assert parse(twin_raw(smooth_normals=True)).contacts[0].smooth_normals is True
+    assert parse(twin_raw()).contacts[0].smooth_normals is None  # the default: T's own normal for contact
+
+
+def test_smoothed_normals_keep_the_finer_mesh_symmetric() -> None:
+    """12 elements per turn (size 4 mm, 5,514 dofs), k = 1e10: with T's own normals the pairs converge to an
+    asymmetric state (docs/layers.md); with the masters' interpolated nodal normals (smooth_normals, l2 line
+    search) the answer is mirror-symmetric (1e-8 of max |u|) and the wall's with 4 k (1e-3 of max |u|, the force on
+    b to 2e-3), both pairs carrying the same load."""
+    fine = {"turn_elements": 12, "size": 0.004}
+    wall = run_twin(plane_raw(WALL_FACTOR * K[0], **fine))
+    twin = run_twin(twin_raw(K[0], smooth_normals=True, **fine))
+    assert twin.completed and wall.completed and twin.dofs == 5514
+    ia, ib = mirror_pairs(twin.X)
+    scale = np.abs(wall.u).max()
+    assert np.abs(twin.u[ia] - twin.u[ib] * M).max() < 1e-8 * scale  # Newton's tolerance (faceted: 0.23)
+    assert np.abs(twin.u[ib] - wall.u[ib]).max() < 1e-3 * scale
+    assert twin.body_force["b"][0] == pytest.approx(wall.reports[1]["force"][0], rel=2e-3)
+    first, second = twin.reports
+    assert first["active_points"] == second["active_points"] >= 1
+    assert first["normal_force"] == pytest.approx(second["normal_force"], rel=1e-6)

@@ -35,7 +35,7 @@ def _contact_schema(schema: dict[str, Any]) -> None:
     schema.setdefault("allOf", []).append(
         {"if": {"required": ["master"]},
          "then": {"properties": {k: False for k in ("obstacle", "bone", *ALL_SHAPE_KEYS)}},
-         "else": {"properties": {"sliding": False}}})
+         "else": {"properties": {"sliding": False, "smooth_normals": False}}})
     schema["allOf"].append({"if": {"not": {"anyOf": [{"required": ["master"]}, {"required": ["self_contact"]}]}},
                             "then": {"properties": {"exact": False}}})
 
@@ -62,6 +62,11 @@ class ContactSpec(Variant):
                       "triangle's rotation included (a consistent potential: backtracking on it; docs/layers.md): "
                       "sliding (k/2) d^2, d the distance to master's deformed triangles; contact (k/2) min(g, 0)^2, "
                       "g the signed distance to the paired triangle's plane (not with augmented)", default=False)
+    smooth_normals: Flag | None = key(
+        "master only: the gap along master's interpolated nodal normals (area-weighted, continuous across its "
+        "edges) instead of the paired triangle's own; default: on for sliding, off for contact; no consistent "
+        "potential, so Newton takes full steps unless snes_linesearch_type is set (\"l2\" for the twin muscles; "
+        "docs/layers.md); not with exact", default=None)
     self_contact: Flag = key("the surface against itself (self-contact of one body: its nodes against its own deformed "
                              "triangles outside their neighbourhood, facing them; no master, obstacle or bone; "
                              "docs/layers.md)", default=False)
@@ -100,7 +105,7 @@ class ContactSpec(Variant):
             if data.get("self_contact") is True:
                 if data.get("method", "penalty") != "penalty":
                     fail(f"self-contact needs method = \"penalty\", not {data['method']!r}", "method")
-                for k in ("master", "sliding", "bone", "obstacle", *ALL_SHAPE_KEYS):
+                for k in ("master", "sliding", "smooth_normals", "bone", "obstacle", *ALL_SHAPE_KEYS):
                     if k in data:
                         fail("not with self_contact = true (the surface is its own master)", k)
                 if data.get("exact") is True and data.get("augmented") is True:
@@ -123,6 +128,9 @@ class ContactSpec(Variant):
                     if k in data:
                         fail("only with master = \"<boundary of another body>\" or self_contact = true (between "
                              "deformable surfaces)", k)
+                if "smooth_normals" in data:
+                    fail("only with master = \"<boundary of another body>\" (the master's nodal normals)",
+                         "smooth_normals")
                 if "obstacle" not in data and "bone" not in data:
                     fail("missing (give obstacle = \"plane\" | \"sphere\" | \"capsule\", a bone, or master = a "
                          "boundary of another body)", "obstacle")
@@ -134,6 +142,9 @@ class ContactSpec(Variant):
             return self
         if self.exact and self.augmented:
             fail("not with exact = true (exact contact is the penalty only)", "augmented")
+        if self.exact and self.smooth_normals:
+            fail("not with exact = true (the exact energies use the paired triangle itself: no normal to smooth)",
+                 "smooth_normals")
         if self.master == self.surface:
             fail(f"must differ from surface ({self.surface!r}): contact between two bodies' boundaries", "master")
         if self.sliding and self.augmented:
@@ -178,8 +189,8 @@ class PenaltyContact(ContactSpec):
     """method = "penalty": the energy (k/2) min(g, 0)^2 per unit reference area (g the gap), or with
     augmented = true its augmented Lagrangian with Uzawa updates."""
 
-    keys = (*_SHAPE_AND_COMMON, "master", "sliding", "exact", "self_contact", "rings", "reach", "penalty", "augmented",
-            "tolerance", "max_uzawa",
+    keys = (*_SHAPE_AND_COMMON, "master", "sliding", "exact", "smooth_normals", "self_contact", "rings", "reach",
+            "penalty", "augmented", "tolerance", "max_uzawa",
             "quadrature_degree")
     method: Literal["penalty"] = key("a penalty energy on the penetration")
     penalty: Positive = key("the penalty stiffness k > 0, per unit reference area and unit penetration",

@@ -67,15 +67,21 @@ def _raw(contacts: list[dict[str, Any]], steps: int, activation: float, E: float
 
 def twin_raw(k: float = 1e10, steps: int = 4, activation: float = 1.0, E: float = E_BELLY,
              sigma_max: float = SIGMA_MAX, contact: bool = True, augmented: bool = False, exact: bool = False,
-             **mesh: Any) -> dict[str, Any]:
+             smooth_normals: bool = False, **mesh: Any) -> dict[str, Any]:
     """examples/twin_muscles.toml: the twin muscles (meshes.twin_muscles, :data:`MESH`'s parameters updated by
     ``mesh``), the bellies (Young's modulus ``E``, peak active stress ``sigma_max``) activated to ``activation``
     in ``steps`` steps, the ends clamped, the pairs :data:`PAIRS` with penalty ``k`` (``augmented``: Uzawa
-    updates; ``exact``: BodyContact's exact contact; ``contact`` False: none)."""
+    updates; ``exact``: BodyContact's exact contact; ``smooth_normals``: the masters' interpolated nodal normals,
+    with the l2 line search on the residual's norm, as the pairs have no consistent potential; ``contact`` False:
+    none)."""
     contacts = [{"surface": s, "master": m, "method": "penalty", "penalty": k,
-                 **({"augmented": True} if augmented else {}), **({"exact": True} if exact else {})}
+                 **({"augmented": True} if augmented else {}), **({"exact": True} if exact else {}),
+                 **({"smooth_normals": True} if smooth_normals else {})}
                 for s, m in PAIRS] if contact else []
-    return _raw(contacts, steps, activation, E, sigma_max, **mesh)
+    raw = _raw(contacts, steps, activation, E, sigma_max, **mesh)
+    if smooth_normals:
+        raw["solver"]["petsc_options"]["snes_linesearch_type"] = "l2"
+    return raw
 
 
 def plane_raw(k_wall: float, steps: int = 4, activation: float = 1.0, E: float = E_BELLY,

@@ -323,7 +323,7 @@ def _body_contact(problem: ElasticityProblem, spec: ContactSpec, key: str) -> Bo
         return BodyContact(problem, spec.surface, spec.master, spec.penalty,
                            kind="sliding" if spec.sliding else "contact", name=f"{spec.surface}-{spec.master}",
                            augmented=spec.augmented, tolerance=spec.tolerance, max_uzawa=spec.max_uzawa,
-                           exact=spec.exact)
+                           exact=spec.exact, smooth_normals=spec.smooth_normals)
     except ValueError as err:
         raise ConfigError(f"{key}.{err}") from None
 
