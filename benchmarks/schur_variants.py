@@ -1,7 +1,7 @@
 """One variant of the iterative Taylor-Hood preset on the bar of benchmarks/scaling.py, at nu = 0.3 and 0.4999.
 
     PYTHONPATH=. OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/schur_variants.py N [--nu 0.3 0.4999] \
-        [--options '{"pc_fieldsplit_schur_fact_type": "full"}'] [--shear 1.0] [--bulk 1.0]
+        [--options '{"pc_fieldsplit_schur_fact_type": "full"}'] [--shear 1.0] [--bulk 1.0] [--matrix aij]
     mpirun -n 2 .venv/bin/python benchmarks/schur_variants.py ...
 
 The bar: ``scaling.bar(N, "mixed", nu, "iterative")`` (2N x N x N boxes of six tetrahedra, neo-Hookean E = 1e4,
@@ -89,6 +89,8 @@ def main() -> None:
     parser.add_argument("--bulk", type=float, default=1.0, help="b of the Schur weight a/mu + b/kappa")
     parser.add_argument("--conformal", action="store_true",
                         help="add the three special conformal fields to the u block's near null space (10 modes)")
+    parser.add_argument("--matrix", choices=("auto", "aij", "nest"), default="auto",
+                        help="[solver] matrix: the nested Jacobian (auto, nest) or one assembled matrix (aij)")
     args = parser.parse_args()
     options: dict[str, Any] = json.loads(args.options)
 
@@ -114,11 +116,13 @@ def main() -> None:
         warm = bar(1, "mixed", 0.3, "iterative")
         warm["loading"] = {"steps": 1}
         warm["solver"]["petsc_options"] = dict(options)
+        warm["solver"]["matrix"] = args.matrix
         run(parse(warm, ROOT / "examples"), out / "warm-up", comm)  # compile the forms, untimed
         PETSc.Log.begin()
         for nu in args.nu:
             raw = bar(args.n, "mixed", nu, "iterative")
             raw["solver"]["petsc_options"] = dict(options)
+            raw["solver"]["matrix"] = args.matrix
             comm.Barrier()
             flops, wall, cpu = PETSc.Log.getFlops(), time.perf_counter(), time.process_time()
             summary = run(parse(raw, ROOT / "examples"), out / f"nu{nu}", comm)
@@ -128,7 +132,8 @@ def main() -> None:
             peak = comm.allreduce(_hwm_mb(), op=MPI.SUM)
             counts = [c for step in summary["steps"] for c in step.get("linear_iterations_per_newton", [])]
             if comm.rank == 0:
-                print(f"n = {args.n}, {summary['dofs']} dofs, {comm.size} rank(s), nu = {nu}, weight "
+                print(f"n = {args.n}, {summary['dofs']} dofs, {comm.size} rank(s), matrix "
+                      f"{summary['solver'].get('matrix')}, nu = {nu}, weight "
                       f"{args.shear}/mu + {args.bulk}/kappa, {json.dumps(options)}: {summary['status']}; linear its "
                       f"{counts}, mean {sum(counts) / max(len(counts), 1):.2f}; wall {wall:.1f} s, CPU {cpu:.1f} s, "
                       f"{flops / 1e9:.1f} GFlop, peak {peak} MB (VmHWM summed over ranks)", flush=True)

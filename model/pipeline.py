@@ -411,10 +411,10 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
         from model.solvers.contact import make_contact_solver
 
         made = make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent,
-                                   defaults=choice.options, objective=objective)
+                                   defaults=choice.options, objective=objective, matrix=solver.matrix)
     else:
         made = NewtonSolver(problem, config.petsc_options, tangent=solver.tangent, defaults=choice.options,
-                            objective=objective)
+                            objective=objective, matrix=solver.matrix)
     made.linear_choice = choice
     log.info("linear solver: %s (%s asked, %d dofs)", choice.preset, choice.requested, choice.dofs)
     return made
@@ -435,6 +435,7 @@ def _solver_summary(config: RunConfig, solver: Any) -> dict[str, Any]:
     choice = getattr(solver, "linear_choice", None)
     if newton is not None and choice is not None:
         out.update(choice.as_dict(newton.options))
+        out["matrix"] = newton.matrix
     return out
 
 

@@ -63,6 +63,12 @@ class SolverConfig(Variant):
         "matrix for the Schur complement) or \"auto\" (direct below "
         "50000 unknowns, iterative from there); petsc_options override any of its options",
         default="auto")
+    matrix: Literal["auto", "aij", "nest"] = key(
+        "Newton's matrix: \"nest\" (one PETSc matrix per block of the mixed formulation's fields u and p, taken as "
+        "they are by the fieldsplit preconditioner: the Jacobian held once instead of twice), \"aij\" (the whole "
+        "Jacobian assembled into one matrix, which every preconditioner takes) or \"auto\" (nest with the "
+        "mixed formulation's fieldsplit preconditioner and no contact or sliding between bodies, aij otherwise)",
+        default="auto")
     petsc_options: PetscOptions = key(
         "PETSc options without their leading '-', e.g. { snes_rtol = 1e-8, ksp_type = \"preonly\" }",
         default_factory=dict)
@@ -78,7 +84,7 @@ class SolverConfig(Variant):
 class NewtonSettings(SolverConfig):
     """[solver] with method = "newton" (the default): PETSc SNES with line search."""
 
-    keys = ("method", "tangent", "linear", "petsc_options")
+    keys = ("method", "tangent", "linear", "matrix", "petsc_options")
     method: Literal["newton"] = key("the nonlinear solver: PETSc SNES Newton", default="newton")
 
 

@@ -189,9 +189,10 @@ def make_contact_solver(problem: ElasticityProblem, contacts: Sequence[Contact],
                         options: dict[str, str | int | float | bool] | None = None, prefix: str | None = None,
                         tangent: str = "exact", predictor: bool = True,
                         defaults: dict[str, str | int | float | bool] | None = None,
-                        objective: bool | None = None) -> NewtonSolver | VISolver | UzawaSolver:
+                        objective: bool | None = None, matrix: str = "auto") -> NewtonSolver | VISolver | UzawaSolver:
     """The solver for a problem with contacts (build them first); all have NewtonSolver's interface.
-    ``defaults``: the linear preset's options (model.solvers.linear), below ``options``.
+    ``defaults``: the linear preset's options (model.solvers.linear), below ``options``; ``matrix``:
+    NewtonSolver's ([solver] matrix).
 
     VI contacts: VISolver, a NewtonSolver with snes_type vinewtonrsls (VI_OPTIONS; a user snes_type
     must be a VI type) and the bounds of every VI contact (the tightest wins), with the predictor
@@ -221,7 +222,7 @@ def make_contact_solver(problem: ElasticityProblem, contacts: Sequence[Contact],
             xu.array[:] = upper
 
     newton = NewtonSolver(problem, options, prefix=prefix, tangent=tangent, bounds=bounds, defaults=defaults,
-                          objective=objective)
+                          objective=objective, matrix=matrix)
     for c in vi:
         c.solver = newton
     inner: Any = VISolver(newton, vi, predictor) if vi else newton

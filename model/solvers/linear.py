@@ -29,6 +29,10 @@ the mixed space's sub-spaces, in the order of the collapsed sub-space (the u set
 size 3), in global numbering. So the u sub-matrix is laid out like the collapsed vector space, and the
 rigid-body modes and the dilation built on that space are its near null space (composed with the u index set as
 "nearnullspace", which PCFieldSplit attaches to the sub-matrix at every set-up).
+
+With the fieldsplit preconditioner the Jacobian is a nested matrix by default ([solver] matrix = "auto":
+``matrix_kind``, model.solvers.nested): one matrix per block, the index sets in the collapsed spaces' order,
+so PCFieldSplit takes A, B^T, B and C as they are instead of copying them out of an assembled J.
 """
 
 from __future__ import annotations
@@ -60,6 +64,8 @@ PRESETS = ("direct", "iterative", "auto")
 AUTO_DOFS = 50_000
 #: the fields of the mixed formulation, by their PETSc names
 FIELDS = ("u", "p")
+#: the Jacobian's matrix types of [solver] matrix (matrix_kind)
+MATRICES = ("auto", "aij", "nest")
 
 DIRECT: Options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 #: displacement formulation: CG + GAMG (the matrix carries the rigid-body modes as near null space). Threshold 0
@@ -212,6 +218,36 @@ def resolve(problem: ElasticityProblem, requested: str, user: Options | None = N
     return LinearChoice(requested, preset, dofs, _without_others(ITERATIVE_MIXED, user))
 
 
+def matrix_kind(problem: ElasticityProblem, requested: str, options: Options, *, tangent: str = "exact",
+                bounds: bool = False) -> str:
+    """The Jacobian's PETSc matrix for [solver] matrix = ``requested``: "nest" (one matrix per block of the fields
+    u and p, model.solvers.nested: PCFieldSplit takes the blocks as they are instead of copying them out of an
+    assembled matrix) or "aij" (the whole Jacobian assembled into one matrix).
+
+    "auto" is "nest" where a nest can serve: the mixed formulation with ``pc_type`` fieldsplit (the iterative
+    preset), the exact tangent, no variable bounds (VI contact) and no coupling terms added to the matrix
+    (contact between bodies, sliding: they add matrices in the mixed space's numbering); "aij" elsewhere, which
+    every preconditioner takes (LU needs it). "nest" where it cannot serve: ConfigError naming why.
+    """
+    if requested not in MATRICES:
+        raise ConfigError(f"solver.matrix: {requested!r} is not one of {', '.join(MATRICES)}")
+    reason = None
+    if problem.formulation != "mixed":
+        reason = "needs the mixed formulation (its fields u and p are the blocks)"
+    elif str(options.get("pc_type", "")) != "fieldsplit":
+        reason = (f"needs a fieldsplit preconditioner (the iterative preset), not pc_type = "
+                  f"{options.get('pc_type', 'none')!r}: other preconditioners need the assembled matrix")
+    elif tangent != "exact":
+        reason = "needs the exact tangent"
+    elif bounds:
+        reason = "cannot be used with contact method \"vi\" (variable bounds)"
+    elif problem.couplings:
+        reason = "cannot be used with contact or sliding between bodies (their terms are added to an assembled matrix)"
+    if requested == "nest" and reason is not None:
+        raise ConfigError(f"solver.matrix: \"nest\" {reason}; use \"auto\" or \"aij\"")
+    return "nest" if requested == "nest" or (requested == "auto" and reason is None) else "aij"
+
+
 def _without_others(preset: Options, user: Options) -> Options:
     """The preset's options less those of a preconditioner or Krylov method the user replaced (so that the
     options recorded as in effect are the ones PETSc reads)."""
@@ -280,9 +316,13 @@ def rigid_body_modes(problem: ElasticityProblem) -> PETSc.NullSpace:
 
 class MixedFields:
     """The u and p index sets of a mixed (Taylor-Hood) problem, the u block's near null space and the Schur
-    preconditioner's weighted pressure mass matrix Sp = - sum_r int (1/mu_r + 1/kappa_r) p q dx_r."""
+    preconditioner's weighted pressure mass matrix Sp = - sum_r int (1/mu_r + 1/kappa_r) p q dx_r.
 
-    def __init__(self, problem: ElasticityProblem) -> None:
+    ``nested``: the index sets are those of the block layout of a nested Jacobian (model.solvers.nested): on each
+    rank its owned u dofs in the collapsed space's order, then its owned p dofs, numbered contiguously from the
+    rank's offset (as PCFieldSplit needs, sorted); the near null space and Sp are then the collapsed spaces' own."""
+
+    def __init__(self, problem: ElasticityProblem, nested: bool = False) -> None:
         if problem.formulation != "mixed":
             raise ValueError("MixedFields: only for the mixed formulation")
         space = problem.space
@@ -296,6 +336,9 @@ class MixedFields:
         #: per field: the collapsed space's owned dofs in the order of the field's rows (ascending global index in
         #: the mixed space, as PCFieldSplit needs)
         self.order: dict[str, np.ndarray] = {}
+        #: per field: the mixed space's local dof of each local (owned, then ghost) dof of the collapsed space
+        self.parents: dict[str, np.ndarray] = {}
+        self.nested = nested
         for i, name in enumerate(FIELDS):
             collapsed, parent = space.sub(i).collapse()
             parent = np.asarray(parent, dtype=np.int64)
@@ -304,8 +347,14 @@ class MixedFields:
             mine = parent[:n]
             if np.any(mine >= owned) or np.any(parent[n:] < owned):
                 raise RuntimeError(f"field {name}: the collapsed space's owned dofs are not the mixed space's")
-            order = np.argsort(mine, kind="stable")
-            index_set = PETSc.IS().createGeneral((first + mine[order]).astype(PETSc.IntType), comm=comm)
+            self.parents[name] = parent
+            if nested:  # the block layout: from the rank's first row (as the mixed space's), u then p
+                order = np.arange(n)
+                index_set = PETSc.IS().createStride(n, first, 1, comm=comm)
+                first += n
+            else:
+                order = np.argsort(mine, kind="stable")
+                index_set = PETSc.IS().createGeneral((first + mine[order]).astype(PETSc.IntType), comm=comm)
             # block size 3 (hypre's nodal coarsening) when the sorted u dofs come node by node, x y z
             blocks = order.reshape(-1, sub_bs)
             nodal = bool(np.all(blocks // sub_bs == blocks[:, :1] // sub_bs)
@@ -354,6 +403,8 @@ class MixedFields:
             form = term if form is None else form + term
         matrix = fem_petsc.assemble_matrix(fem.form(form))
         matrix.assemble()
+        if self.nested:  # the collapsed space's order is the field's
+            return matrix
         start = pressure.dofmap.index_map.local_range[0]
         rows = PETSc.IS().createGeneral((start + self.order["p"]).astype(PETSc.IntType), comm=msh.comm)
         reordered = matrix.createSubMatrix(rows, rows)

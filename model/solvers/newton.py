@@ -269,7 +269,7 @@ class NewtonSolver:
                  prefix: str | None = None, tangent: str = "exact",
                  bounds: Callable[[PETSc.Vec, PETSc.Vec], None] | None = None,
                  defaults: dict[str, str | int | float | bool] | None = None,
-                 objective: bool | None = None) -> None:
+                 objective: bool | None = None, matrix: str = "auto") -> None:
         if tangent not in TANGENTS:
             raise ValueError(f"solver.tangent: {tangent!r} is not one of {', '.join(TANGENTS)}")
         self.problem = problem
@@ -285,12 +285,30 @@ class NewtonSolver:
         else:
             self.residual_form, self.jacobian_form = problem.forms
         self.b = fem_petsc.create_vector(self.residual_form)
-        self.A = fem_petsc.create_matrix(self.jacobian_form)
+        linear.check_options(problem, options or {})  # fieldsplit options this problem cannot take
+        # DEFAULT_OPTIONS < the linear preset's ``defaults`` (model.solvers.linear) < the user's ``options``
+        self.options = {**DEFAULT_OPTIONS, **(defaults or {}), **(options or {})}
+        self.options.setdefault("snes_linesearch_type", default_line_search(problem))
+        #: "nest" (the mixed Jacobian's blocks, model.solvers.nested) or "aij" (one assembled matrix)
+        self.matrix = linear.matrix_kind(problem, matrix, self.options, tangent=tangent,
+                                         bounds=bounds is not None)
+        self.fields: linear.MixedFields | None = None
+        self.nested = None
+        self.x = compat.petsc_vector(problem.solution).copy()
+        if self.matrix == "nest":  # SNES works in the nest's block layout (model.solvers.nested), x and b
+            from model.solvers.nested import NestedJacobian  # here in the mixed space's are the callbacks' own
+
+            self.fields = linear.MixedFields(problem, nested=True)
+            self.nested = NestedJacobian(problem, self.fields)
+            self.A = self.nested.matrix
+            self._mixed_x, self._mixed_b = self.x, self.b
+            self.x, self.b = self.nested.block_vector(), self.nested.block_vector()
+        else:
+            self.A = fem_petsc.create_matrix(self.jacobian_form)
         self.near_null_space = None
         if problem.formulation == "displacement":
             self.near_null_space = linear.rigid_body_modes(problem)
             self.A.setNearNullSpace(self.near_null_space)
-        self.x = compat.petsc_vector(problem.solution).copy()
         self.snes = PETSc.SNES().create(comm)
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
@@ -303,10 +321,6 @@ class NewtonSolver:
         if self.objective:
             self.snes.setObjective(self._objective)
         self.prefix = prefix or f"elasticity{next(_counter)}_"
-        linear.check_options(problem, options or {})  # fieldsplit options this problem cannot take
-        # DEFAULT_OPTIONS < the linear preset's ``defaults`` (model.solvers.linear) < the user's ``options``
-        self.options = {**DEFAULT_OPTIONS, **(defaults or {}), **(options or {})}
-        self.options.setdefault("snes_linesearch_type", default_line_search(problem))
         self.user_options = list(options or {})
         db = PETSc.Options()
         for key, value in self.options.items():
@@ -314,7 +328,10 @@ class NewtonSolver:
         self.snes.setOptionsPrefix(self.prefix)
         self.snes.setFromOptions()
         # fieldsplit (mixed formulation): the u and p index sets, the u block's near null space, Schur's Sp
-        self.fields = linear.configure_fields(self.snes, problem, self.options)
+        if self.fields is not None:
+            self.fields.configure(self.snes.getKSP().getPC(), self.options)
+        else:
+            self.fields = linear.configure_fields(self.snes, problem, self.options)
         #: linear iterations of each Newton iteration of the last solve
         self.linear_monitor = linear.LinearMonitor(self.snes)
         # the options stay in the database until destroy(): PETSc reads some of them only when the
@@ -333,7 +350,15 @@ class NewtonSolver:
         self.xl = self.x.duplicate() if bounds is not None else None
         self.xu = self.x.duplicate() if bounds is not None else None
 
+    def _mixed(self, x: PETSc.Vec) -> PETSc.Vec:
+        """x in the mixed space's layout: x itself, or (nest) its permutation, in a work vector of the solver."""
+        if self.nested is None:
+            return x
+        self.nested.to_mixed(x, self._mixed_x)
+        return self._mixed_x
+
     def _copy_in(self, x: PETSc.Vec) -> None:
+        x = self._mixed(x)
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         solution = compat.petsc_vector(self.problem.solution)
         x.copy(solution)
@@ -345,6 +370,9 @@ class NewtonSolver:
         # of the last Jacobian evaluation (of the initial state at the first residual of a solve):
         # the same linearisation as the Newton matrix. It vanishes once x satisfies the conditions.
         self._copy_in(x)
+        out = b
+        if self.nested is not None:  # the mixed space's layout here, the block layout for SNES at the end
+            x, b = self._mixed_x, self._mixed_b
         with b.localForm() as b_local:
             b_local.set(0.0)
         fem_petsc.assemble_vector(b, self.residual_form)
@@ -354,6 +382,8 @@ class NewtonSolver:
         for coupling in self.problem.couplings:  # contact between bodies: Pi^T dPi_c/dz (body_contact)
             coupling.add_residual(b)
         compat.set_bc(b, bcs, x, -1.0)
+        if self.nested is not None:
+            self.nested.to_block(b, out)
 
     def _objective(self, snes: PETSc.SNES, x: PETSc.Vec) -> float:
         """Pi(x), the total potential (ElasticityProblem.total_potential), the same on every rank."""
@@ -374,11 +404,12 @@ class NewtonSolver:
 
     def _off_dirichlet(self) -> bool:
         """Whether self.x differs from the Dirichlet values (the load factor has moved them), on any rank."""
-        gap = self.x.duplicate()
+        x = self._mixed(self.x)
+        gap = x.duplicate()
         gap.set(0.0)
-        compat.set_bc(gap, self.problem.bcs, self.x, -1.0)  # x - g on the constrained dofs
+        compat.set_bc(gap, self.problem.bcs, x, -1.0)  # x - g on the constrained dofs
         largest = gap.norm(PETSc.NormType.NORM_INFINITY)
-        scale = max(self.x.norm(PETSc.NormType.NORM_INFINITY), largest)
+        scale = max(x.norm(PETSc.NormType.NORM_INFINITY), largest)
         gap.destroy()
         return largest > 1e-14 * scale
 
@@ -428,6 +459,9 @@ class NewtonSolver:
         self._copy_in(x)
         if self.projected is not None:
             self.projected.update()
+        if self.nested is not None:  # A is the nest over the blocks
+            self.nested.assemble()
+            return
         A.zeroEntries()
         fem_petsc.assemble_matrix(A, self.jacobian_form, bcs=self.problem.bcs)
         A.assemble()
@@ -441,7 +475,10 @@ class NewtonSolver:
 
     def solve(self) -> SolveResult:
         """Newton from the current solution; the solution holds the last iterate afterwards."""
-        compat.petsc_vector(self.problem.solution).copy(self.x)
+        if self.nested is not None:
+            self.nested.to_block(compat.petsc_vector(self.problem.solution), self.x)
+        else:
+            compat.petsc_vector(self.problem.solution).copy(self.x)
         if self.projected is not None:  # the tangent of the initial state (targets may have changed)
             self._copy_in(self.x)
             self.projected.invalidate()
@@ -499,7 +536,7 @@ class NewtonSolver:
         b = self.b.duplicate()
         try:
             self._residual(self.snes, self.x, b)
-            return residual_location(self.problem, b)
+            return residual_location(self.problem, self._mixed_b if self.nested is not None else b)
         finally:
             b.destroy()
 
@@ -521,7 +558,12 @@ class NewtonSolver:
     def destroy(self) -> None:
         self._delete_options()
         self.snes.destroy()
-        self.A.destroy()
+        if self.nested is not None:
+            self.nested.destroy()  # the nest (self.A) and its blocks
+            self._mixed_b.destroy()
+            self._mixed_x.destroy()
+        else:
+            self.A.destroy()
         self.b.destroy()
         self.x.destroy()
         for bound in (self.xl, self.xu):

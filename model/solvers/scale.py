@@ -228,10 +228,17 @@ def _largest_strain(problem: ElasticityProblem, increment: fem.Function) -> floa
     return msh.comm.allreduce(local, op=MPI.MAX)
 
 
-def _linear_solver(problem: ElasticityProblem, A: PETSc.Mat) -> tuple[PETSc.KSP, Any, float]:
+def _iterative(problem: ElasticityProblem) -> bool:
+    """Whether the check solves with the iterative preset: from linear.AUTO_DOFS unknowns."""
+    return problem.space.dofmap.index_map.size_global * problem.space.dofmap.index_map_bs >= linear.AUTO_DOFS
+
+
+def _linear_solver(problem: ElasticityProblem, A: PETSc.Mat,
+                   fields: linear.MixedFields | None = None) -> tuple[PETSc.KSP, Any, float]:
     """A KSP for the check's solve with A (module docstring, (a)): MUMPS LU below linear.AUTO_DOFS unknowns,
     else the iterative preset (ksp_rtol ITERATIVE_RTOL) on its own options prefix; with the function that frees
-    what it made and the relative residual the solution must reach."""
+    what it made and the relative residual the solution must reach. ``fields``: the mixed formulation's, when
+    A is a nested Jacobian (their block layout; else the check makes its own)."""
     comm = problem.domain.mesh.comm
     ksp = PETSc.KSP().create(comm)
     ksp.setOperators(A)
@@ -260,9 +267,10 @@ def _linear_solver(problem: ElasticityProblem, A: PETSc.Mat) -> tuple[PETSc.KSP,
     ksp.setOptionsPrefix(prefix)
     ksp.setFromOptions()
     if problem.formulation == "mixed":
-        fields = linear.MixedFields(problem)
+        if fields is None:
+            fields = linear.MixedFields(problem)
+            made.append(fields)
         fields.configure(ksp.getPC(), choice.options)
-        made.append(fields)
 
     def release() -> None:
         for key in choice.options:
@@ -282,7 +290,9 @@ def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | Non
     residual, jacobian = problem.forms
     fibres = problem.cell_fields.get("fibre_direction")
     saved_fibres = fibres.x.array.copy() if fibres is not None else None
-    A = b = dx = ksp = None
+    A = b = dx = ksp = rhs = None
+    nested: Any = None
+    fields = None
     release: Any = None
     try:
         if fibres is not None:  # every fibre stretch 1 + 1e-9: the fibre curves' tangent from the side of stretch
@@ -292,27 +302,44 @@ def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | Non
         problem.invalidate_state()
         problem.update_state()
         bcs = problem.bcs
-        A = fem_petsc.assemble_matrix(jacobian, bcs=bcs)
-        A.assemble()
+        if problem.formulation == "mixed" and _iterative(problem):  # the run's nested Jacobian (model.solvers
+            from model.solvers.nested import NestedJacobian  # .nested): no copies of its blocks in the fieldsplit
+
+            fields = linear.MixedFields(problem, nested=True)
+            nested = NestedJacobian(problem, fields)
+            nested.assemble()
+            A = nested.matrix
+        else:
+            A = fem_petsc.assemble_matrix(jacobian, bcs=bcs)
+            A.assemble()
         b = fem_petsc.assemble_vector(residual)
         x0 = compat.petsc_vector(problem.solution)
         compat.apply_lifting(b, [jacobian], bcs=[bcs], x0=[x0], alpha=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         compat.set_bc(b, bcs, x0, -1.0)
-        ksp, release, tolerance = _linear_solver(problem, A)
-        dx = A.createVecRight()
-        ksp.solve(b, dx)
+        ksp, release, tolerance = _linear_solver(problem, A, fields)
+        rhs = b
+        if nested is not None:  # the block layout
+            rhs = nested.block_vector()
+            nested.to_block(b, rhs)
+        dx = rhs.duplicate()
+        ksp.solve(rhs, dx)
         if ksp.getConvergedReason() < 0:
             return None
-        check = b.duplicate()
+        check = rhs.duplicate()
         A.mult(dx, check)
-        check.axpy(-1.0, b)
-        misfit, norm = check.norm(), b.norm()
+        check.axpy(-1.0, rhs)
+        misfit, norm = check.norm(), rhs.norm()
         check.destroy()
         if not (math.isfinite(misfit) and misfit <= tolerance * max(norm, 1e-300)):
             return None
         increment = fem.Function(problem.space)
-        compat.petsc_vector(increment).axpy(-1.0, dx)  # du = -dx (Newton's update x - dx from x = 0)
+        step = compat.petsc_vector(increment)
+        if nested is not None:
+            nested.to_mixed(dx, step)
+            step.scale(-1.0)
+        else:
+            step.axpy(-1.0, dx)  # du = -dx (Newton's update x - dx from x = 0)
         increment.x.scatter_forward()
         return _largest_strain(problem, increment)
     except (PETSc.Error, ConfigError):  # ConfigError: the mixed iterative preset needs every shear modulus
@@ -320,7 +347,7 @@ def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | Non
     finally:
         if ksp is not None:
             release()
-        for obj in (ksp, A, b, dx):
+        for obj in (ksp, nested if nested is not None else A, b, dx, rhs if rhs is not b else None, fields):
             if obj is not None:
                 obj.destroy()
         if fibres is not None:
