@@ -48,7 +48,10 @@ planar: the same steps with
 * the fibre ends along an axis (``PatchAxis``): s = X . e - c for the base triangles' centroids, origin
   s < -end a, insertion s > end a; the disc: e = (1, 0, 0) (or a given axis), c = 0, a = radius (x < -end a
   as before); a file: e given or the patch's principal axis (``patch_axis``), c and a the middle and half of the
-  nodes' extent along e.
+  nodes' extent along e;
+* a tetrahedron whose four vertices all lie on one end has phi constant, grad phi = 0 (none on the plane base;
+  on a curved base one may fill a valley between two base triangles): it takes the mean over its vertices of the
+  nodal averages of grad phi (``laplace_fibres``).
 """
 
 from __future__ import annotations
@@ -57,7 +60,11 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from forms.membrane import MembraneLaw
 from forms.obstacles import Obstacle
@@ -73,7 +80,7 @@ from meshes.membrane import (
 )
 from model import compat
 from model.domain.distribute import Domain, build_domain
-from model.fields.fibres import FibreField
+from model.fields.fibres import FibreField, solve_laplace
 from model.problem.membrane import MembraneProblem, axis_orientation, triangle_orientation
 from model.problem.membrane_contact import ObstacleContact
 from model.solvers.membrane import InflationStep, inflate_to_volume
@@ -81,7 +88,7 @@ from model.solvers.membrane import InflationStep, inflate_to_volume
 log = logging.getLogger(__name__)
 
 __all__ = ["InflatedPatch", "PatchAxis", "cell_values", "close_and_mesh", "deformed_points", "inflate_extruded_patch",
-           "inflate_patch", "patch_axis", "set_nodal_displacement"]
+           "inflate_patch", "laplace_fibres", "patch_axis", "set_nodal_displacement"]
 
 #: patch_axis refuses a principal axis whose second moment exceeds the next one's by less than this fraction
 ROUND_PATCH = 0.05
@@ -225,7 +232,39 @@ def close_and_mesh(data: SurfaceMeshData | None, deformed: np.ndarray | None, ax
         mesh_data = tetrahedralise(points, np.vstack([g[0] for g in groups]), np.concatenate([g[1] for g in groups]),
                                    {"patch": 1, "base": 2, "origin": 3, "insertion": 4}, tet_size)
     tet_domain = build_domain(comm, mesh_data)
-    return tet_domain, FibreField(tet_domain).laplace("origin", "insertion"), mesh_data
+    return tet_domain, laplace_fibres(tet_domain), mesh_data
+
+
+def laplace_fibres(domain: Domain, origin: str = "origin", insertion: str = "insertion") -> FibreField:
+    """FibreField(domain).laplace(origin, insertion), a0 = grad phi / |grad phi|, except in the cells where grad phi
+    vanishes (|grad phi| <= 1e-8 of its largest: phi constant, every vertex on one end): there a0 is the mean over
+    the cell's vertices of the nodal averages g_i = int grad phi psi_i dx / int psi_i dx (psi_i the P1 hat
+    functions: the area-weighted mean of the gradients of the cells around node i, nonzero next to the cells where
+    phi varies). Collective."""
+    msh = domain.mesh
+    fibres = FibreField(domain)
+    phi = solve_laplace(domain, origin, insertion)
+    grad = compat.evaluate(fem.Expression(ufl.grad(phi), np.zeros((1, 3)) + 0.25), msh, fibres.cells).reshape(-1, 3)
+    norm = np.linalg.norm(grad, axis=1)
+    flat = norm <= 1e-8 * msh.comm.allreduce(float(norm.max(initial=0.0)), op=MPI.MAX)
+    count = msh.comm.allreduce(int(np.count_nonzero(flat)), op=MPI.SUM)
+    if count:  # on every rank: the assembly is collective
+        Q = compat.function_space(msh, "Lagrange", 1)
+        q = ufl.TestFunction(Q)
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 1})
+        sums = []
+        for integrand in (q, *(phi.dx(k) * q for k in range(3))):
+            total = fem.Function(Q)
+            vector = compat.petsc_vector(total)
+            fem_petsc.assemble_vector(vector, fem.form(integrand * dx))
+            vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            sums.append(total.x.array.copy())
+        nodal = np.column_stack(sums[1:]) / sums[0][:, None]
+        grad[flat] = nodal[compat.cell_dofs(Q.dofmap)[fibres.cells[flat]]].mean(axis=1)
+        log.info("laplace_fibres: %d cells with grad phi = 0 (every vertex on one end) take their vertices' mean",
+                 count)
+    return fibres.set_values(grad)
 
 
 def inflate_patch(law: MembraneLaw, target_volume: float, radius: float = 1.0, size: float = 0.15,

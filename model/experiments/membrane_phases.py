@@ -220,6 +220,16 @@ def _close_and_write(config: MembraneRunConfig, problem: MembraneProblem, data: 
     return record
 
 
+def _flat_end_tetrahedra(mesh: MeshData) -> int:
+    """The tetrahedra with all four vertices on one end (phi constant: model.experiments.membrane.laplace_fibres)."""
+    count = 0
+    for name in ("origin", "insertion"):
+        on_end = np.zeros(mesh.num_points, dtype=bool)
+        on_end[np.unique(mesh.boundary_facets(name))] = True
+        count += int(np.count_nonzero(on_end[mesh.cells].all(axis=1)))
+    return count
+
+
 def _write_muscle(config: MembraneRunConfig, data: SurfaceMeshData, patch: _Patch, mesh_data: MeshData,
                   a0: np.ndarray, enclosed: float, tet_size: float, out: Path) -> dict[str, Any]:
     """Rank 0: muscle.msh, fibres.npy, muscle.vtu, muscle.toml (read back by the solid run's reader)."""
@@ -241,6 +251,7 @@ def _write_muscle(config: MembraneRunConfig, data: SurfaceMeshData, patch: _Patc
               "tet_size": tet_size, "end": muscle.end, "volume": mesh_data.volume(), "enclosed_volume": enclosed,
               "base_volume": patch.base_volume, "axis": list(patch.axis.direction), "axis_centre": patch.axis.centre,
               "half_length": patch.axis.half_length, "origin_triangles": origin, "insertion_triangles": insertion,
+              "flat_end_tetrahedra": _flat_end_tetrahedra(mesh_data),
               "boundaries": sorted(mesh_data.boundary_names), "fixed": list(muscle.fixed)}
     log.info("muscle: %d tetrahedra, volume %.9g (membrane %.9g); %s", mesh_data.num_cells, record["volume"],
              enclosed, out / MUSCLE_FILES["config"])
