@@ -9,10 +9,13 @@ into a muscle"; the thesis' ch. 3.3.3: the patch is drawn on a bone, generally n
 - a patch on a bone shaft (a cylinder of radius 0.5 along x, the patch |x| <= 1 over 2 rad of it: not planar,
   its rim not in a plane) inflated to a target volume: the volume is the one between the patch and its rest shape
   (the closed surface's, the divergence theorem: the same with the file moved away from the origin, measured to
-  1e-13 relative), the tetrahedra of muscle.msh enclose it (to round-off: measured 3e-15), every fibre is a unit
-  vector, the fibres at the ends are the end faces' inward normals, in the belly they run along the principal
-  axis x (measured: mean a0 . e_x 0.9997, min 0.996), the muscle lies outside the faceted bone, and the written
-  muscle.toml runs (2 steps, the ends' reactions balance, the origin pulled towards the insertion);
+  1e-14 relative), the tetrahedra of muscle.msh enclose it (to round-off: measured 3e-15), every fibre is a unit
+  vector, the fibres at the ends are the end faces' normals (mostly into the muscle at the origin and out of it
+  at the insertion: the discrete maximum principle fails in a few flat tetrahedra along the rim), in the belly
+  they run along the principal axis x (measured: mean a0 . e_x 0.9997, min 0.996), the muscle lies outside the
+  faceted bone, and the written muscle.toml runs (2 steps, the ends' reactions balance, the origin pulled towards
+  the insertion);
+- laplace_fibres where phi is constant on a cell (its four vertices on one end) against numpy;
 - the refusals: two boundary loops, two pieces, a closed surface, a handle, the rim not clamped (in the config,
   part of it, an edge inside), a round patch without an axis, a zero axis: one-line ConfigErrors naming the key;
 - examples/membrane_file_muscle.toml (examples/data/shaft_patch.obj, made by ``shaft_patch``) runs.
@@ -45,16 +48,16 @@ def shaft_patch(length: float = 2.0, radius: float = BONE_RADIUS, angle: float =
                 jitter: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """The patch |x| <= length/2, |theta| <= angle on the cylinder y = r sin theta, z = r cos theta (a bone shaft
     along x): an nx x nt grid of (x, theta), each cell halved along alternating diagonals, oriented outward
-    (right-handed: d/dx x d/dtheta is the radial direction). The grid's nodes are moved along the cylinder by up
-    to jitter/2 of a cell in x and theta (the rim's only along it), by a fixed integer pattern: a regular grid has
+    (right-handed: d/dx x d/dtheta is the radial direction). The grid's inner x lines are moved along x by up to
+    jitter/2 of a cell, by a fixed integer pattern that differs from line to line of theta: a regular grid has
     cospherical points and a mirror symmetry, whose ties gmsh's tetrahedralisation breaks by the round-off of the
     inflated surface (measured: the 1- and 2-rank runs' tetrahedra then differ, one the other's mirror image);
-    moved, the two are the same."""
+    moved, the two are the same. (Moved in theta too, the base's quadrilaterals fold, and gmsh fills some folds
+    with flat tetrahedra whose four vertices are on the base: slivers for the muscle run.)"""
     i, j = (k.ravel() for k in np.meshgrid(np.arange(nx + 1), np.arange(nt + 1), indexing="ij"))
-    shift_x = (((7 * i + 13 * j) % 11) / 10.0 - 0.5) * ((i > 0) & (i < nx))
-    shift_t = (((5 * i + 3 * j) % 7) / 6.0 - 0.5) * ((j > 0) & (j < nt))
-    x = -length / 2 + (i + jitter * shift_x) * length / nx
-    theta = -angle + (j + jitter * shift_t) * 2 * angle / nt
+    shift = (((7 * i + 13 * j) % 11) / 10.0 - 0.5) * ((i > 0) & (i < nx))
+    x = -length / 2 + (i + jitter * shift) * length / nx
+    theta = -angle + j * 2 * angle / nt
     points = np.column_stack([x, radius * np.sin(theta), radius * np.cos(theta)])
     index = np.arange(len(points)).reshape(nx + 1, nt + 1)
     cells = []
@@ -192,11 +195,14 @@ def test_a_patch_on_a_bone_shaft_to_muscle(shared_tmp: Path) -> None:
         assert mesh.volume() == pytest.approx(muscle["volume"], rel=1e-12)
         a0 = np.load(out / "fibres.npy")
         assert np.abs(np.linalg.norm(a0, axis=1) - 1.0).max() < 1e-12
-        # a tetrahedron with a face on an end: a0 is that face's normal, into the muscle at the origin (phi = 0
-        # there, >= 0 inside) and out of it at the insertion
+        # a tetrahedron with a face on an end: a0 is that face's normal (phi is constant on it), into the muscle at
+        # the origin (phi = 0 there, > 0 inside) and out of it at the insertion, but where the discrete maximum
+        # principle fails: in the flat tetrahedra of the wedge along the rim, where the patch leaves the base, a
+        # patch node next to the insertion may have phi > 1 (measured: 5 of the 48 at the insertion, none at the
+        # origin; a0's sign does not matter to the muscle, whose active stress has a0 a0^T)
         for name, sign in (("origin", 1.0), ("insertion", -1.0)):
             faces = {tuple(f) for f in np.sort(mesh.boundary_facets(name), axis=1)}
-            count = 0
+            along = []
             for k, tet in enumerate(mesh.cells):
                 for opposite in range(4):
                     face = np.delete(tet, opposite)
@@ -205,9 +211,10 @@ def test_a_patch_on_a_bone_shaft_to_muscle(shared_tmp: Path) -> None:
                         n = np.cross(p[1] - p[0], p[2] - p[0])
                         n /= np.linalg.norm(n)
                         n *= np.sign(n @ (mesh.points[tet[opposite]] - p[0]))  # towards the inside
-                        assert np.abs(a0[k] - sign * n).max() < 1e-10, (name, k)
-                        count += 1
-            assert count >= 20, name
+                        along.append(sign * a0[k] @ n)
+            along = np.asarray(along)
+            assert len(along) >= 20 and np.abs(np.abs(along) - 1.0).max() < 1e-10, name
+            assert np.count_nonzero(along > 0) >= 0.85 * len(along), name
         along = a0 @ np.array([1.0, 0.0, 0.0])
         x = mesh.points[mesh.cells].mean(axis=1)[:, 0]
         belly = np.abs(x) < 0.2
@@ -347,8 +354,8 @@ def test_a_round_patch_needs_an_axis(shared_tmp: Path) -> None:
 def test_the_example(shared_tmp: Path) -> None:
     """examples/membrane_file_muscle.toml: examples/data/shaft_patch.obj is shaft_patch's; [extrusion], the
     inflation to the target and [muscle] complete, the tetrahedra enclose the target volume; every fibre is a unit
-    vector, also in a tetrahedron with its four vertices on an end (grad phi = 0 there; measured: 1 of 725, in a
-    valley between two base triangles at the origin), whose a0 leaves the bone (a0 . radial > 0: measured 0.69)."""
+    vector, also in any tetrahedron with its four vertices on an end (grad phi = 0 there; none here, measured; one
+    of 725 with the patch's nodes moved in theta too), whose a0 must leave the bone (a0 . radial > 0)."""
     from meshes.data import read_msh
 
     example = EXAMPLES / "membrane_file_muscle.toml"
@@ -382,3 +389,54 @@ def test_the_example(shared_tmp: Path) -> None:
         centre = mesh.points[mesh.cells[flat]].mean(axis=1)
         radial = centre * [0.0, 1.0, 1.0] / np.hypot(centre[:, 1], centre[:, 2])[:, None]
         assert np.all(np.einsum("ij,ij->i", a0[flat], radial) > 0.0)
+
+
+def test_laplace_fibres_where_phi_is_constant() -> None:
+    """laplace_fibres on the structured box [0, 4] x [0, 1] x [0, 1] (4 hexahedra of 6 tetrahedra), origin its face
+    x = 0 and the top face's first hexahedron (x <= 1), insertion x = 4: three tetrahedra of the first hexahedron
+    have all four vertices on the origin (phi = 0 on them, grad phi = 0). Against phi solved here with numpy (P1
+    stiffness): every other cell's a0 is grad phi / |grad phi|, those three the mean over their vertices of the
+    nodal averages g_i = sum_T |T| grad_T phi / sum_T |T| (over the cells T around node i), normalised (to 1e-10)."""
+    from meshes.box import box
+    from meshes.data import MeshData
+    from model.domain.distribute import build_domain
+    from model.experiments.membrane import cell_values, laplace_fibres
+
+    b = box((4.0, 1.0, 1.0), (4, 1, 1))
+    x = b.points[b.facets][:, :, 0]
+    origin = (b.facet_tags == b.boundary_names["xmin"]) | \
+        ((b.facet_tags == b.boundary_names["zmax"]) & np.all(x <= 1.0, axis=1))
+    insertion = b.facet_tags == b.boundary_names["xmax"]
+    data = MeshData(b.points, b.cells, b.cell_tags, np.vstack([b.facets[origin], b.facets[insertion]]),
+                    np.repeat(np.array([1, 2], np.int32), [int(origin.sum()), int(insertion.sum())]),
+                    dict(b.region_names), {"origin": 1, "insertion": 2})
+    a0 = cell_values(laplace_fibres(build_domain(COMM, data if COMM.rank == 0 else None)))
+    if COMM.rank != 0:
+        return
+    # phi with numpy: P1 stiffness, phi = 0 / 1 on the ends' nodes
+    n = len(b.points)
+    ones = np.ones((len(b.cells), 4, 1))
+    G = np.linalg.inv(np.concatenate([ones, b.points[b.cells]], axis=2))[:, 1:, :]  # grad of the barycentrics
+    volume = np.abs(np.linalg.det(b.points[b.cells][:, 1:] - b.points[b.cells][:, :1])) / 6
+    K = np.zeros((n, n))
+    for T, cell in enumerate(b.cells):
+        K[np.ix_(cell, cell)] += volume[T] * G[T].T @ G[T]
+    phi = np.full(n, np.nan)
+    phi[np.unique(b.facets[origin])] = 0.0
+    phi[np.unique(b.facets[insertion])] = 1.0
+    free = np.isnan(phi)
+    known = ~free
+    phi[free] = np.linalg.solve(K[np.ix_(free, free)], -K[np.ix_(free, known)] @ phi[known])
+    grad = np.einsum("tdk,tk->td", G, phi[b.cells])
+    flat = np.isin(b.cells, np.unique(b.facets[origin])).all(axis=1)
+    assert flat.sum() == 3 and np.abs(grad[flat]).max() < 1e-12
+    nodal = np.zeros((n, 3))
+    weight = np.zeros(n)
+    for T, cell in enumerate(b.cells):
+        nodal[cell] += volume[T] * grad[T]
+        weight[cell] += volume[T]
+    expected = grad.copy()
+    expected[flat] = (nodal / weight[:, None])[b.cells[flat]].mean(axis=1)
+    expected /= np.linalg.norm(expected, axis=1)[:, None]
+    assert np.abs(a0 - expected).max() < 1e-10
+    assert np.all(a0[flat][:, 0] > 0.8)  # from the origin towards the insertion (measured 0.83 to 0.90)
