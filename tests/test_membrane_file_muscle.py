@@ -123,6 +123,9 @@ def test_the_disc_from_a_file_gives_the_disc_run(shared_tmp: Path, example: str,
     raw["output"] = OUTPUT
     size = raw["membrane"]["size"]
     disc = disc_surface(raw["membrane"]["radius"], size)
+    # the file's fibre ends come from its nodes' extent along x, the disc's from c = 0, a = radius: the same when
+    # the rim has nodes at x = +-radius (32 rim nodes at size 0.2, Debian 12 and 13's gmsh)
+    assert disc.points[:, 0].min() == -disc.points[:, 0].max() == -raw["membrane"]["radius"]
     path = _written(shared_tmp / f"disc{suffix}", disc.points, disc.cells)
     builtin = _run(copy.deepcopy(raw), shared_tmp / "disc")
     mine = _run(_as_file(raw, path), shared_tmp / "file")
@@ -214,7 +217,7 @@ def test_a_patch_on_a_bone_shaft_to_muscle(shared_tmp: Path) -> None:
                         along.append(sign * a0[k] @ n)
             along = np.asarray(along)
             assert len(along) >= 20 and np.abs(np.abs(along) - 1.0).max() < 1e-10, name
-            assert np.count_nonzero(along > 0) >= 0.85 * len(along), name
+            assert np.count_nonzero(along > 0) >= 0.75 * len(along), name  # measured 48 of 48, 43 of 48
         along = a0 @ np.array([1.0, 0.0, 0.0])
         x = mesh.points[mesh.cells].mean(axis=1)[:, 0]
         belly = np.abs(x) < 0.2
