@@ -29,18 +29,25 @@ in opposite directions (their right-handed normals on the same side). ``"file"``
 and refuses an inconsistent one; a direction ``(3,)`` or ``"outward"`` (away from the middle of the points'
 bounding box) turns each triangle so that its normal has a positive component along it, and refuses a result
 that is inconsistent (e.g. a closed surface given one direction).
+
+Topology (``patch_topology``, for a patch that is closed into a muscle): the number of pieces (connected
+components of the triangles), of boundary loops (connected components of the open edges; each boundary vertex
+of a manifold surface without bow-ties has two of them) and the Euler characteristic V - E + F; a disc (one
+patch with one rim) has 1, 1, 1.
 """
 
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from meshes.membrane import SurfaceMeshData, orient_triangles
 
-__all__ = ["AUTO_BOUNDARY", "check_orientation", "oriented_cells", "read_surface", "vertex_fans"]
+__all__ = ["AUTO_BOUNDARY", "PatchTopology", "check_orientation", "oriented_cells", "patch_topology", "read_surface",
+           "vertex_fans"]
 
 #: the name of the open boundary found from the triangles
 AUTO_BOUNDARY = "boundary"
@@ -272,3 +279,38 @@ def oriented_cells(points: np.ndarray, cells: np.ndarray, orientation: str | np.
         raise ValueError(f"triangles inconsistently oriented by {how}: {count} edges run the same way in both "
                          f"their triangles, e.g. triangles {pair[0]} and {pair[1]}")
     return result
+
+
+@dataclass(frozen=True)
+class PatchTopology:
+    """A triangle surface's pieces, boundary loops and Euler characteristic V - E + F (module docstring)."""
+
+    pieces: int
+    loops: int
+    euler: int
+
+    @property
+    def is_disc(self) -> bool:
+        """One piece with one boundary loop and chi = 1: a disc (no handles)."""
+        return (self.pieces, self.loops, self.euler) == (1, 1, 1)
+
+
+def patch_topology(cells: np.ndarray) -> PatchTopology:
+    """The topology of the surface ``cells`` (every edge in at most two triangles, no bow-tie vertex, every point
+    0 .. max used): pieces and boundary loops as connected components (scipy.sparse.csgraph), V - E + F."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    cells = np.asarray(cells, dtype=np.int64)
+    edges, _, counts = _undirected(cells)
+    n = int(cells.max(initial=-1)) + 1
+
+    def components(pairs: np.ndarray, nodes: np.ndarray) -> int:
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        label = connected_components(graph, directed=False)[1]
+        return len(np.unique(label[nodes]))
+
+    open_edges = edges[counts == 1]
+    pieces = components(edges, np.unique(cells))
+    loops = components(open_edges, np.unique(open_edges)) if len(open_edges) else 0
+    return PatchTopology(pieces, loops, len(np.unique(cells)) - len(edges) + len(cells))

@@ -19,11 +19,13 @@ pressure, model.experiments.membrane.run_membrane), not a solid run (RunConfig):
                    penalty or augmented Lagrangian (model.problem.membrane_contact.MembranePairContact), or
                    ``self_contact = true``: one region (default the whole membrane) against itself
                    (model.problem.membrane_contact.MembraneSelfContact, penalty)
-    [extrusion]    before [inflation] (surface = "disc"): the disc extruded, inflated without contact to a first
-                   volume and smoothed into a new rest shape (the thesis' two phases)
-    [muscle]       after the inflation (surface = "disc"): the patch closed with its flat base, filled with
-                   tetrahedra, given Laplace fibres and written as muscle.msh, fibres.npy, muscle.vtu and a solid
-                   run's configuration muscle.toml (the thesis' ch. 3.3.3; model.experiments.membrane)
+    [extrusion]    before [inflation] (surface = "disc" or a "file" patch, rim clamped): the patch extruded,
+                   inflated without contact to a first volume and smoothed into a new rest shape (the thesis' two
+                   phases)
+    [muscle]       after the inflation (surface = "disc" or a "file" patch, rim clamped): the patch closed with
+                   its rest shape as the base, filled with tetrahedra, given Laplace fibres and written as
+                   muscle.msh, fibres.npy, muscle.vtu and a solid run's configuration muscle.toml (the thesis' ch.
+                   3.3.3; model.experiments.membrane)
     [output]       folder, XDMF and VTU of the deformed surface
     [units]        labels only
 
@@ -354,13 +356,15 @@ class ContactSection(Section):
 
 class ExtrusionSection(Section):
     """[extrusion]: the thesis' first inflation phase and new rest shape (ch. 3.3.3; model.experiments.membrane
-    .inflate_extruded_patch) before [inflation]: the disc is extruded by ``offset`` along its normal (the clamped
-    rim stays), inflated without contact until ``first_volume``, and its free nodes smoothed and relaxed until the
-    enclosed volume falls to ``rest_volume`` (meshes.membrane.smooth_rest_shape); [inflation] (with the
-    [[obstacle]]s) then inflates the membrane on that rest shape from u = 0. Needs surface = "disc" with its rim
-    clamped."""
+    .inflate_extruded_patch) before [inflation]: the patch is extruded by ``offset`` along its oriented vertex
+    normals (the clamped rim stays), inflated without contact until ``first_volume``, and its free nodes smoothed
+    and relaxed until the enclosed volume falls to ``rest_volume`` (meshes.membrane.smooth_rest_shape);
+    [inflation] (with the [[obstacle]]s) then inflates the membrane on that rest shape from u = 0. The volumes
+    are those between the surface and the patch at rest (the muscle's base). Needs surface = "disc", or "file"
+    with one patch of one rim (disc topology), the rim clamped."""
 
-    offset: Positive = key("the extrusion of the free nodes along the disc's normal", "m (length)")
+    offset: Positive = key("the extrusion of the free nodes along the patch's oriented vertex normals",
+                           "m (length)")
     first_volume: Positive = key("the first phase's stop: the enclosed volume of the inflated extrusion (no "
                                  "contact)", "m^3 (volume)")
     rest_volume: Positive = key("the new rest shape's enclosed volume: the smoothing stops when the volume falls "
@@ -377,25 +381,35 @@ class ExtrusionSection(Section):
 #: the boundaries of the closed patch's tetrahedral mesh (model.experiments.membrane): the inflated patch, the flat
 #: base, and the base's two ends where the fibres start and end
 MUSCLE_BOUNDARIES = ("patch", "base", "origin", "insertion")
+#: the surfaces [extrusion] and [muscle] take: the built-in disc, or a user's patch (one rim, disc topology)
+PATCH_SURFACES = ("disc", "file")
 #: the files the [muscle] phase writes into the output folder
 MUSCLE_FILES = {"mesh": "muscle.msh", "fibres": "fibres.npy", "config": "muscle.toml", "vtu": "muscle.vtu"}
 
 
 class MuscleSection(Section):
-    """[muscle]: after the inflation, the thesis' closing (ch. 3.3.3): the disc patch closed with its flat rest
-    shape as the base and filled with tetrahedra (gmsh), the Laplace fibre field a0 = grad phi / |grad phi|
-    (phi = 0 on the base's end x < -end radius, ``origin``, and 1 on x > end radius, ``insertion``), written as
+    """[muscle]: after the inflation, the thesis' closing (ch. 3.3.3): the patch closed with its rest shape (the
+    disc's flat one, a file's patch as read) as the base and filled with tetrahedra (gmsh), the Laplace fibre
+    field a0 = grad phi / |grad phi| (phi = 0 on the base's end s < -end a, ``origin``, and 1 on s > end a,
+    ``insertion``; s the position along ``axis`` about the patch's middle, a its half-length), written as
     muscle.msh (physical groups: volume muscle; surfaces patch, base, origin, insertion), fibres.npy (a0 per
     tetrahedron in the mesh file's cell order), muscle.vtu (both, to look at) and muscle.toml: a solid run of
     the muscle (law muscle, isotropic StVK, the fibres from fibres.npy, the activation ramped from 0, the
-    ``fixed`` boundaries clamped) that ``python -m model run`` takes as it is. Needs surface = "disc" with its
-    rim clamped."""
+    ``fixed`` boundaries clamped) that ``python -m model run`` takes as it is. Needs surface = "disc", or "file"
+    with one patch of one rim (disc topology), the rim clamped."""
 
     tet_size: Positive | None = key("largest tetrahedron edge inside the muscle (default: membrane.size; the "
                                     "surface mesh is kept)", "m (length)", default=None)
     end: Annotated[Number, *interval(0.0, 1.0, "()")] = key(
-        "the fibre ends: the base triangles with centroid x < -end radius (origin) and x > end radius "
-        "(insertion)", "dimensionless", default=0.6)
+        "the fibre ends: the base triangles whose centroid has s < -end a (origin) and s > end a (insertion), "
+        "s = X . e - c along the unit axis e (``axis``), c and a the middle and the half-length of the patch "
+        "along it (disc: c = 0, a = radius, so with the default axis x < -end radius and x > end radius; file: "
+        "the middle and half of the nodes' extent min..max of X . e)", "dimensionless", default=0.6)
+    axis: Point | None = key(
+        "the direction e the fibres run along, from origin to insertion (normalised; default: disc [1, 0, 0]; "
+        "file: the patch's principal axis, the direction of the largest area-weighted second moment of its "
+        "triangles' centroids about their mean, its largest component positive; a patch whose two largest "
+        "moments are within 5 % of each other (round) has none: give axis)", "dimensionless", default=None)
     young: Positive = key("the muscle's Young's modulus E (its isotropic StVK part)", "Pa (stress)")
     nu: Annotated[Number, *interval(-1.0, 0.5, "()")] = key("the muscle's Poisson's ratio", "dimensionless",
                                                             default=0.45)
@@ -430,8 +444,8 @@ class MembraneRunConfig(Section):
     obstacles: tuple[ObstacleSection, ...] = key("rigid obstacles with a penalty", default=(), alias="obstacle")
     contacts: tuple[ContactSection, ...] = key("membrane-membrane contacts (two regions of the surface)",
                                                default=(), alias="contact")
-    extrusion: ExtrusionSection | None = key("before [inflation]: the disc extruded, inflated to a first volume "
-                                             "and smoothed into a new rest shape", default=None)
+    extrusion: ExtrusionSection | None = key("before [inflation]: the patch (disc or file) extruded, inflated to a "
+                                             "first volume and smoothed into a new rest shape", default=None)
     muscle: MuscleSection | None = key("after the inflation: the patch closed, tetrahedralised, given Laplace "
                                        "fibres and written with a muscle run's configuration", default=None)
     output: MembraneOutput = key("results folder and files", default_factory=MembraneOutput)
@@ -464,22 +478,35 @@ class MembraneRunConfig(Section):
                         "named physical surfaces"
                     fail(f"{self.membrane.surface} has no region {name!r} ({known})", "contact", i, k)
         if self.extrusion is not None:
-            if self.membrane.surface != "disc":
-                fail(f"needs surface = 'disc' (the extruded patch), not {self.membrane.surface!r}", "extrusion")
-            if self.membrane.border.get("rim") != (0, 1, 2):
-                fail("needs the rim clamped (membrane.fixed = { rim = [0, 1, 2] }): the extrusion keeps it",
+            if self.membrane.surface not in PATCH_SURFACES:
+                fail(f"needs surface = 'disc' or 'file' (the extruded patch), not {self.membrane.surface!r}",
                      "extrusion")
+            if not self._rim_clamped():
+                fail(f"needs the rim clamped ({self._clamped_hint()}): the extrusion keeps it", "extrusion")
             if "bump" in self.membrane.model_fields_set:
                 fail("not with [extrusion] (the first phase starts from the extruded disc, the second from its rest "
                      "shape)", "membrane", "bump")
         if self.muscle is not None:
-            if self.membrane.surface != "disc":
-                fail(f"needs surface = 'disc' (a patch closed with its flat base), not {self.membrane.surface!r}",
-                     "muscle")
-            if self.membrane.border.get("rim") != (0, 1, 2):
-                fail("needs the rim clamped (membrane.fixed = { rim = [0, 1, 2] }): the base is closed on it",
-                     "muscle")
+            if self.membrane.surface not in PATCH_SURFACES:
+                fail(f"needs surface = 'disc' or 'file' (a patch closed with its rest shape as the base), not "
+                     f"{self.membrane.surface!r}", "muscle")
+            if not self._rim_clamped():
+                fail(f"needs the rim clamped ({self._clamped_hint()}): the base is closed on it", "muscle")
+            if self.muscle.axis is not None and not any(float(c) != 0.0 for c in self.muscle.axis):
+                fail("must not be zero (the direction the fibres run along)", "muscle", "axis")
         return self
+
+    def _rim_clamped(self) -> bool:
+        """[extrusion], [muscle]: the disc's rim held in x, y, z; a file's every border held in x, y, z (that the
+        borders are the patch's whole open boundary and nothing else is checked when the file is read)."""
+        border = self.membrane.border
+        if self.membrane.surface == "disc":
+            return border.get("rim") == (0, 1, 2)
+        return bool(border) and all(tuple(sorted(set(c))) == (0, 1, 2) for c in border.values())
+
+    def _clamped_hint(self) -> str:
+        return "membrane.fixed = { rim = [0, 1, 2] }" if self.membrane.surface == "disc" else \
+            "membrane.fixed = { boundary = [0, 1, 2] }, the patch's open boundary held in x, y, z"
 
     @property
     def uzawa_tolerance(self) -> float:
@@ -522,5 +549,5 @@ def load_membrane(path: str | Path, overrides: dict[str, Any] | None = None) -> 
 
 
 __all__ = ["ContactSection", "ExtrusionSection", "InflationSection", "LAW_PARAMETERS", "MUSCLE_BOUNDARIES",
-           "MUSCLE_FILES", "MembraneOutput", "MembraneRunConfig", "MembraneSection", "MuscleSection", "ObstacleSection",
-           "SURFACES", "SURFACE_KEYS", "is_membrane", "load_membrane", "parse_membrane"]
+           "MUSCLE_FILES", "PATCH_SURFACES", "SURFACES", "SURFACE_KEYS", "MembraneOutput", "MembraneRunConfig",
+           "MembraneSection", "MuscleSection", "ObstacleSection", "is_membrane", "load_membrane", "parse_membrane"]

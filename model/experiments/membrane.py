@@ -35,6 +35,23 @@ The thesis' two phases (ch. 3.3.3), on the same disc patch:
    DIVERGED_MAX_IT at the first pressure step). Each pressure's equilibrium is on the branch that starts at
    the rest shape (u = 0, the equilibrium at p = 0), so the stepping starts from u = 0;
 4. closed with the flat patch as base, tetrahedralised, Laplace fibres, as above.
+
+A user's patch (model.experiments.membrane_run, surface = "file" with [extrusion] / [muscle]) is generally not
+planar: the same steps with
+
+* the extrusion along the patch's oriented vertex normals (meshes.membrane.extrude, as for the disc);
+* the volume measured from the patch at rest: V(x) - V_b, V_b = enclosed_volume(rest patch) (the cone formula
+  (1/6) sum x0 . (x1 x x2) about the origin): the closed surface "x, then the rest patch reversed" shares the
+  clamped rim, so by the divergence theorem V(x) - V_b is the volume it encloses, whatever the origin (the
+  disc in z = 0 has V_b = 0 exactly: the same numbers as before);
+* the rest patch as the base (close_with_base), tetrahedralised;
+* the fibre ends along an axis (``PatchAxis``): s = X . e - c for the base triangles' centroids, origin
+  s < -end a, insertion s > end a; the disc: e = (1, 0, 0) (or a given axis), c = 0, a = radius (x < -end a
+  as before); a file: e given or the patch's principal axis (``patch_axis``), c and a the middle and half of the
+  nodes' extent along e;
+* a tetrahedron whose four vertices all lie on one end has phi constant, grad phi = 0 (none on the plane base;
+  on a curved base one may fill a valley between two base triangles): it takes the mean over its vertices of the
+  nodal averages of grad phi (``laplace_fibres``).
 """
 
 from __future__ import annotations
@@ -43,7 +60,11 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from forms.membrane import MembraneLaw
 from forms.obstacles import Obstacle
@@ -59,15 +80,64 @@ from meshes.membrane import (
 )
 from model import compat
 from model.domain.distribute import Domain, build_domain
-from model.fields.fibres import FibreField
+from model.fields.fibres import FibreField, solve_laplace
 from model.problem.membrane import MembraneProblem, axis_orientation, triangle_orientation
 from model.problem.membrane_contact import ObstacleContact
 from model.solvers.membrane import InflationStep, inflate_to_volume
 
 log = logging.getLogger(__name__)
 
-__all__ = ["InflatedPatch", "cell_values", "close_and_mesh", "deformed_points", "inflate_extruded_patch",
-           "inflate_patch", "set_nodal_displacement"]
+__all__ = ["InflatedPatch", "PatchAxis", "cell_values", "close_and_mesh", "deformed_points", "inflate_extruded_patch",
+           "inflate_patch", "laplace_fibres", "patch_axis", "set_nodal_displacement"]
+
+#: patch_axis refuses a principal axis whose second moment exceeds the next one's by less than this fraction
+ROUND_PATCH = 0.05
+
+
+@dataclass(frozen=True)
+class PatchAxis:
+    """The line the fibres run along: s(X) = X . e - c, e = ``direction`` (unit), c = ``centre``; the patch
+    spans about s in [-a, a], a = ``half_length``."""
+
+    direction: tuple[float, float, float]
+    centre: float
+    half_length: float
+
+    def position(self, points: np.ndarray) -> np.ndarray:
+        """s = X . e - c at each point (n, 3)."""
+        return np.asarray(points, dtype=np.float64) @ np.asarray(self.direction, dtype=np.float64) - self.centre
+
+    def ends(self, points: np.ndarray, cells: np.ndarray, end: float) -> tuple[np.ndarray, np.ndarray]:
+        """The triangles whose centroid has s < -end a (origin) and s > end a (insertion): two bool masks."""
+        s = self.position(np.asarray(points, dtype=np.float64)[np.asarray(cells, dtype=np.int64)].mean(axis=1))
+        limit = end * self.half_length
+        return s < -limit, s > limit
+
+
+def patch_axis(points: np.ndarray, cells: np.ndarray, axis: tuple[float, float, float] | None = None) -> PatchAxis:
+    """The axis of a patch: e = ``axis`` normalised, or the principal axis, the eigenvector of the largest
+    eigenvalue of the area-weighted second moment sum_T A_T (x_T - m)(x_T - m)^T of the triangles' centroids x_T
+    about their mean m, its largest component made positive; c and a the middle and half of min..max of X . e
+    over the nodes. ValueError when the two largest moments are within ROUND_PATCH of the largest (a round patch
+    has no principal axis)."""
+    points = np.asarray(points, dtype=np.float64)
+    cells = np.asarray(cells, dtype=np.int64)
+    if axis is not None:
+        e = np.asarray(axis, dtype=np.float64)
+        e = e / np.linalg.norm(e)
+    else:
+        p = points[cells]
+        area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+        x = p.mean(axis=1)
+        d = x - (area @ x) / area.sum()
+        moments, vectors = np.linalg.eigh((d * area[:, None]).T @ d)
+        if moments[1] > (1.0 - ROUND_PATCH) * moments[2]:
+            raise ValueError(f"the patch has no principal axis: its two largest second moments {moments[2]:.6g} "
+                             f"and {moments[1]:.6g} are within {ROUND_PATCH:.0%} (a round patch)")
+        e = vectors[:, 2]
+        e = e if e[np.argmax(np.abs(e))] > 0 else -e
+    s = points[np.unique(cells)] @ e
+    return PatchAxis(tuple(float(c) for c in e), float(0.5 * (s.max() + s.min())), float(0.5 * (s.max() - s.min())))
 
 
 @dataclass
@@ -139,23 +209,62 @@ def set_nodal_displacement(problem: MembraneProblem, values: np.ndarray) -> None
     problem.u.x.scatter_forward()
 
 
-def close_and_mesh(data: SurfaceMeshData | None, deformed: np.ndarray | None, radius: float, end: float,
-                   tet_size: float, comm: MPI.Comm) -> tuple[Domain, FibreField, MeshData | None]:
-    """Close the inflated patch (``deformed``: X + u at the input points of the disc ``data``, rank 0) with the
-    flat ``data`` as base, tetrahedralise, Laplace fibres (steps 2-3 of the module docstring). Returns the
-    distributed tetrahedral domain, its fibre field and the MeshData (rank 0, else None). Collective."""
+def close_and_mesh(data: SurfaceMeshData | None, deformed: np.ndarray | None, axis: PatchAxis | float, end: float,
+                   tet_size: float, comm: MPI.Comm, rim: np.ndarray | None = None
+                   ) -> tuple[Domain, FibreField, MeshData | None]:
+    """Close the inflated patch (``deformed``: X + u at the input points of the patch ``data``, rank 0) with the
+    rest ``data`` as base, tetrahedralise, Laplace fibres (steps 2-3 of the module docstring; the ends along
+    ``axis``, a float: the disc's radius a, e = (1, 0, 0), c = 0). ``rim``: the clamped nodes the patch and the
+    base share (default: data's boundary "rim"). Returns the distributed tetrahedral domain, its fibre field and
+    the MeshData (rank 0, else None). Collective."""
+    if not isinstance(axis, PatchAxis):
+        axis = PatchAxis((1.0, 0.0, 0.0), 0.0, float(axis))
     mesh_data = None
     if comm.rank == 0:
-        rim = np.unique(data.facets[data.facet_tags == data.boundary_names["rim"]])
+        if rim is None:
+            rim = np.unique(data.facets[data.facet_tags == data.boundary_names["rim"]])
         points, triangles, side = close_with_base(data, deformed, rim)
-        centre_x = np.concatenate([np.full(len(data.cells), np.nan), data.points[data.cells].mean(axis=1)[:, 0]])
+        origin, insertion = axis.ends(data.points, data.cells, end)
+        none = np.zeros(len(data.cells), dtype=bool)
         groups = [(triangles, side)]
-        for tag, mask in ((3, centre_x < -end * radius), (4, centre_x > end * radius)):  # base triangles only
+        for tag, mask in ((3, np.concatenate([none, origin])), (4, np.concatenate([none, insertion]))):  # base
             groups.append((triangles[mask], np.full(int(mask.sum()), tag, np.int32)))
         mesh_data = tetrahedralise(points, np.vstack([g[0] for g in groups]), np.concatenate([g[1] for g in groups]),
                                    {"patch": 1, "base": 2, "origin": 3, "insertion": 4}, tet_size)
     tet_domain = build_domain(comm, mesh_data)
-    return tet_domain, FibreField(tet_domain).laplace("origin", "insertion"), mesh_data
+    return tet_domain, laplace_fibres(tet_domain), mesh_data
+
+
+def laplace_fibres(domain: Domain, origin: str = "origin", insertion: str = "insertion") -> FibreField:
+    """FibreField(domain).laplace(origin, insertion), a0 = grad phi / |grad phi|, except in the cells where grad phi
+    vanishes (|grad phi| <= 1e-8 of its largest: phi constant, every vertex on one end): there a0 is the mean over
+    the cell's vertices of the nodal averages g_i = int grad phi psi_i dx / int psi_i dx (psi_i the P1 hat
+    functions: the area-weighted mean of the gradients of the cells around node i, nonzero next to the cells where
+    phi varies). Collective."""
+    msh = domain.mesh
+    fibres = FibreField(domain)
+    phi = solve_laplace(domain, origin, insertion)
+    grad = compat.evaluate(fem.Expression(ufl.grad(phi), np.zeros((1, 3)) + 0.25), msh, fibres.cells).reshape(-1, 3)
+    norm = np.linalg.norm(grad, axis=1)
+    flat = norm <= 1e-8 * msh.comm.allreduce(float(norm.max(initial=0.0)), op=MPI.MAX)
+    count = msh.comm.allreduce(int(np.count_nonzero(flat)), op=MPI.SUM)
+    if count:  # on every rank: the assembly is collective
+        Q = compat.function_space(msh, "Lagrange", 1)
+        q = ufl.TestFunction(Q)
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 1})
+        sums = []
+        for integrand in (q, *(phi.dx(k) * q for k in range(3))):
+            total = fem.Function(Q)
+            vector = compat.petsc_vector(total)
+            fem_petsc.assemble_vector(vector, fem.form(integrand * dx))
+            vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            sums.append(total.x.array.copy())
+        nodal = np.column_stack(sums[1:]) / sums[0][:, None]
+        grad[flat] = nodal[compat.cell_dofs(Q.dofmap)[fibres.cells[flat]]].mean(axis=1)
+        log.info("laplace_fibres: %d cells with grad phi = 0 (every vertex on one end) take their vertices' mean",
+                 count)
+    return fibres.set_values(grad)
 
 
 def inflate_patch(law: MembraneLaw, target_volume: float, radius: float = 1.0, size: float = 0.15,

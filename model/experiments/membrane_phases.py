@@ -1,7 +1,14 @@
 """The phases of a membrane run around its inflation (model.experiments.membrane_run): [extrusion] before it (the
-disc extruded, inflated without contact to a first volume and smoothed into a new rest shape) and [muscle] after
-it (the final surface closed with its flat base, tetrahedralised, given Laplace fibres and written with a solid
-run's configuration, muscle.toml)."""
+patch extruded, inflated without contact to a first volume and smoothed into a new rest shape) and [muscle] after
+it (the final surface closed with the patch at rest as its base, tetrahedralised, given Laplace fibres and written
+with a solid run's configuration, muscle.toml).
+
+The patch is the built-in disc or a user's file (surface = "file", generally not planar: one piece with one rim,
+disc topology, its whole open boundary clamped; checked when the file is read, model.experiments.membrane_surface).
+``_patch`` finds, before any solve, what both phases need: the clamped rim's nodes, the base volume V_b (the cone
+volume of the patch at rest about the origin, model.problem.membrane.MembraneProblem's base_volume: every volume of
+the run is then the volume between the surface and the rest patch; 0 for the disc in z = 0) and the fibre axis
+(model.experiments.membrane.PatchAxis: the disc's x axis, or muscle.axis, or the file's principal axis)."""
 
 from __future__ import annotations
 
@@ -10,6 +17,7 @@ import json
 import logging
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,16 +28,17 @@ from forms.membrane import MembraneLaw
 from meshes.data import MeshData, read_msh, write_msh
 from meshes.membrane import (
     SurfaceMeshData,
+    enclosed_volume,
     extrude,
     smooth_rest_shape,
 )
 from model.config.membrane import MUSCLE_FILES, MembraneRunConfig
 from model.domain.distribute import build_domain
 from model.errors import ConfigError, SolveFailed
-from model.experiments.membrane import cell_values, close_and_mesh, deformed_points
+from model.experiments.membrane import PatchAxis, cell_values, close_and_mesh, deformed_points, patch_axis
 from model.problem.membrane import (
     MembraneProblem,
-    axis_orientation,
+    triangle_orientation,
 )
 from model.solvers.membrane import inflate_to_volume
 
@@ -38,18 +47,74 @@ log = logging.getLogger(__name__)
 __all__ = ['muscle_document']
 
 
-def _extrusion(config: MembraneRunConfig, law: MembraneLaw, flat: SurfaceMeshData | None, num_points: int,
-               comm: MPI.Comm) -> tuple[SurfaceMeshData | None, dict[str, Any]]:
-    """[extrusion]: the disc ``flat`` extruded by ``offset`` (the clamped rim stays), inflated without contact to
-    ``first_volume`` (inflate_to_volume, [inflation]'s dp and cutbacks), its free nodes smoothed and relaxed down to
-    ``rest_volume`` (meshes.membrane.smooth_rest_shape): the new rest shape (rank 0, else None) and summary.json's
-    "extrusion". SolveFailed when the first phase's Newton fails. Collective."""
+@dataclass(frozen=True)
+class _Patch:
+    """What [extrusion] and [muscle] need of the patch (module docstring): the clamped rim's nodes (rank 0, else
+    None), the base volume V_b and, with [muscle], the fibre axis (every rank)."""
+
+    rim: np.ndarray | None
+    base_volume: float
+    axis: PatchAxis | None
+
+
+def _patch(config: MembraneRunConfig, flat: SurfaceMeshData | None, comm: MPI.Comm) -> _Patch:
+    """The patch's rim, V_b and axis (rank 0's, broadcast); ConfigError before any solve when the axis is not
+    defined (a round file patch without muscle.axis) or an end of the muscle has no base triangle. Collective."""
+    rim, found, error = None, None, None
+    if comm.rank == 0:
+        edges = [flat.facets[flat.facet_tags == flat.boundary_names[name]] for name in config.membrane.border]
+        rim = np.unique(np.concatenate(edges))
+        base = enclosed_volume(flat.points, flat.cells) + 0.0  # the disc in z = 0: 0 (+ 0.0: not -0.0)
+        try:
+            found = (base, _axis(config, flat) if config.muscle is not None else None)
+        except ConfigError as err:
+            error = str(err)
+    found, error = comm.bcast((found, error))
+    if error is not None:
+        raise ConfigError(error)
+    return _Patch(rim, *found)
+
+
+def _axis(config: MembraneRunConfig, flat: SurfaceMeshData) -> PatchAxis:
+    """Rank 0: the fibre axis (disc: e = muscle.axis or x, c = 0, a = radius; file: patch_axis), checked: each end
+    has a base triangle."""
+    m, muscle = config.membrane, config.muscle
+    if m.surface == "disc":
+        e = np.asarray(muscle.axis if muscle.axis is not None else (1.0, 0.0, 0.0), dtype=np.float64)
+        axis = PatchAxis(tuple(float(c) for c in e / np.linalg.norm(e)), 0.0, float(m.radius))
+    else:
+        try:
+            axis = patch_axis(flat.points, flat.cells, muscle.axis)
+        except ValueError as err:
+            raise ConfigError(f"muscle.axis: {m.file}: {err}: give axis") from None
+    counts = [int(np.count_nonzero(mask)) for mask in axis.ends(flat.points, flat.cells, muscle.end)]
+    if min(counts) == 0:
+        if m.surface == "disc":
+            along = "x" if muscle.axis is None else "s"
+            raise ConfigError(f"muscle.end: no base triangle has its centroid beyond {along} = +-{muscle.end:g} "
+                              f"radius (membrane.size {m.size:g}, radius {m.radius:g}): lower end or size")
+        raise ConfigError(f"muscle.end: {m.file}: no base triangle has its centroid beyond s = +-{muscle.end:g} a "
+                          f"along the axis {list(axis.direction)} (a = {axis.half_length:.6g}): lower end or "
+                          "refine the patch")
+    return axis
+
+
+def _extrusion(config: MembraneRunConfig, law: MembraneLaw, flat: SurfaceMeshData | None, patch: _Patch,
+               scale: float, num_points: int, comm: MPI.Comm) -> tuple[SurfaceMeshData | None, dict[str, Any]]:
+    """[extrusion]: the patch ``flat`` extruded by ``offset`` along its oriented vertex normals (the clamped rim
+    stays), inflated without contact to ``first_volume`` (inflate_to_volume, [inflation]'s dp, default with the
+    length ``scale``, and cutbacks), its free nodes smoothed and relaxed down to ``rest_volume``
+    (meshes.membrane.smooth_rest_shape), the volumes measured from the rest patch (V - V_b): the new rest shape
+    (rank 0, else None) and summary.json's "extrusion". SolveFailed when the first phase's Newton fails.
+    Collective."""
     e, m, inflation = config.extrusion, config.membrane, config.inflation
-    rim = np.unique(flat.facets[flat.facet_tags == flat.boundary_names["rim"]]) if comm.rank == 0 else None
+    rim, base = patch.rim, patch.base_volume
     extruded = extrude(flat, e.offset, rim) if comm.rank == 0 else None
-    first = MembraneProblem(build_domain(comm, extruded), law, axis_orientation(), m.border,
-                            quadrature_degree=m.quadrature_degree)
-    dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / m.radius
+    # the rest normals: the extruded triangles' own (oriented as the patch's: the disc's +z, the same field)
+    orientation = triangle_orientation(*comm.bcast((extruded.points, extruded.cells) if comm.rank == 0 else None))
+    first = MembraneProblem(build_domain(comm, extruded), law, orientation, m.border,
+                            quadrature_degree=m.quadrature_degree, base_volume=base)
+    dp = inflation.dp if inflation.dp is not None else 0.05 * law.equibiaxial(1.1)[1] / scale
     try:
         steps = inflate_to_volume(first, e.first_volume, dp, max_steps=inflation.max_steps,
                                   cutbacks=inflation.cutbacks)
@@ -58,34 +123,19 @@ def _extrusion(config: MembraneRunConfig, law: MembraneLaw, flat: SurfaceMeshDat
     inflated = deformed_points(first, num_points)
     rest, record = None, None
     if comm.rank == 0:
-        smoothing = smooth_rest_shape(inflated, flat.cells, rim, e.rest_volume)
+        smoothing = smooth_rest_shape(inflated, flat.cells, rim, e.rest_volume + base)  # its volumes: V, not V - V_b
         rest = SurfaceMeshData(smoothing.points, flat.cells, flat.cell_tags, flat.facets, flat.facet_tags,
                                flat.region_names, flat.boundary_names)
         record = {"offset": e.offset, "first_volume": e.first_volume, "rest_volume": e.rest_volume,
                   "first_steps": [{"pressure": s.pressure, "volume": s.volume, "energy": s.energy,
                                    "iterations": s.iterations} for s in steps],
-                  "smoothing_iterations": smoothing.iterations, "smoothed_volume": float(smoothing.volumes[-1])}
+                  "smoothing_iterations": smoothing.iterations,
+                  "smoothed_volume": float(smoothing.volumes[-1]) - base}
     record = comm.bcast(record)
     log.info("extrusion: V = %.6g at p = %.6g after %d steps; smoothed to V = %.6g in %d iterations",
              steps[-1].volume, steps[-1].pressure, len(steps), record["smoothed_volume"],
              record["smoothing_iterations"])
     return rest, record
-
-
-def _ends(config: MembraneRunConfig, data: SurfaceMeshData) -> tuple[int, int]:
-    """[muscle]: how many base (rest) triangles have their centroid at x < -end radius and at x > end radius."""
-    x = data.points[data.cells].mean(axis=1)[:, 0]
-    limit = config.muscle.end * config.membrane.radius
-    return int(np.count_nonzero(x < -limit)), int(np.count_nonzero(x > limit))
-
-
-def _check_ends(config: MembraneRunConfig, data: SurfaceMeshData | None, comm: MPI.Comm) -> None:
-    """ConfigError before any solve when an end of the muscle has no base triangle (no fibre origin or insertion)."""
-    counts = comm.bcast(_ends(config, data) if comm.rank == 0 else None)
-    if min(counts) == 0:
-        m = config.membrane
-        raise ConfigError(f"muscle.end: no base triangle has its centroid beyond x = +-{config.muscle.end:g} radius "
-                          f"(membrane.size {m.size:g}, radius {m.radius:g}): lower end or size")
 
 
 def muscle_document(config: MembraneRunConfig, out: Path) -> str:
@@ -96,8 +146,9 @@ def muscle_document(config: MembraneRunConfig, out: Path) -> str:
     m = config.muscle
     lines = [
         "# The muscle of a membrane run ([muscle], model.experiments.membrane_run; docs/membranes.md): the inflated",
-        "# disc patch closed with its flat base, filled with tetrahedra (muscle.msh: volume muscle; surfaces patch,",
-        "# base, origin, insertion) and given the Laplace fibre field from origin to insertion (fibres.npy).",
+        "# patch closed with the patch at rest as its base, filled with tetrahedra (muscle.msh: volume muscle;",
+        "# surfaces patch, base, origin, insertion) and given the Laplace fibre field from origin to insertion",
+        "# (fibres.npy).",
         f"#   python -m model run {(out / MUSCLE_FILES['config']).as_posix()}",
         "",
         "[units]",
@@ -141,26 +192,26 @@ def _collected() -> Iterator[None]:
             gc.enable()
 
 
-def _muscle(config: MembraneRunConfig, problem: MembraneProblem, data: SurfaceMeshData | None, num_points: int,
-            out: Path, comm: MPI.Comm) -> dict[str, Any]:
-    """[muscle]: close the final surface, tetrahedralise, Laplace fibres, write the files (module docstring).
-    Collective; returns summary.json's "muscle"."""
+def _muscle(config: MembraneRunConfig, problem: MembraneProblem, data: SurfaceMeshData | None, patch: _Patch,
+            num_points: int, out: Path, comm: MPI.Comm) -> dict[str, Any]:
+    """[muscle]: close the final surface with the rest patch ``data``, tetrahedralise, Laplace fibres, write the
+    files (module docstring). Collective; returns summary.json's "muscle"."""
     with _collected():
-        return _close_and_write(config, problem, data, num_points, out, comm)
+        return _close_and_write(config, problem, data, patch, num_points, out, comm)
 
 
 def _close_and_write(config: MembraneRunConfig, problem: MembraneProblem, data: SurfaceMeshData | None,
-                     num_points: int, out: Path, comm: MPI.Comm) -> dict[str, Any]:
+                     patch: _Patch, num_points: int, out: Path, comm: MPI.Comm) -> dict[str, Any]:
     m, muscle = config.membrane, config.muscle
     tet_size = muscle.tet_size if muscle.tet_size is not None else m.size
     deformed = deformed_points(problem, num_points)
-    _, fibres, mesh_data = close_and_mesh(data, deformed, m.radius, muscle.end, tet_size, comm)
+    _, fibres, mesh_data = close_and_mesh(data, deformed, patch.axis, muscle.end, tet_size, comm, rim=patch.rim)
     a0 = cell_values(fibres)
     enclosed = problem.volume()
     record, error = None, None
     if comm.rank == 0:
         try:
-            record = _write_muscle(config, data, mesh_data, a0, enclosed, tet_size, out)
+            record = _write_muscle(config, data, patch, mesh_data, a0, enclosed, tet_size, out)
         except (OSError, RuntimeError, ValueError) as err:  # ConfigError is a ValueError: muscle.toml refused
             error = f"muscle: {err}"
     record, error = comm.bcast((record, error))
@@ -169,8 +220,18 @@ def _close_and_write(config: MembraneRunConfig, problem: MembraneProblem, data: 
     return record
 
 
-def _write_muscle(config: MembraneRunConfig, data: SurfaceMeshData, mesh_data: MeshData, a0: np.ndarray,
-                  enclosed: float, tet_size: float, out: Path) -> dict[str, Any]:
+def _flat_end_tetrahedra(mesh: MeshData) -> int:
+    """The tetrahedra with all four vertices on one end (phi constant: model.experiments.membrane.laplace_fibres)."""
+    count = 0
+    for name in ("origin", "insertion"):
+        on_end = np.zeros(mesh.num_points, dtype=bool)
+        on_end[np.unique(mesh.boundary_facets(name))] = True
+        count += int(np.count_nonzero(on_end[mesh.cells].all(axis=1)))
+    return count
+
+
+def _write_muscle(config: MembraneRunConfig, data: SurfaceMeshData, patch: _Patch, mesh_data: MeshData,
+                  a0: np.ndarray, enclosed: float, tet_size: float, out: Path) -> dict[str, Any]:
     """Rank 0: muscle.msh, fibres.npy, muscle.vtu, muscle.toml (read back by the solid run's reader)."""
     import meshio
 
@@ -185,10 +246,12 @@ def _write_muscle(config: MembraneRunConfig, data: SurfaceMeshData, mesh_data: M
                 cell_data={"fibre_direction": [a0]}).write(out / MUSCLE_FILES["vtu"])
     (out / MUSCLE_FILES["config"]).write_text(muscle_document(config, out))
     load(out / MUSCLE_FILES["config"])  # the solid run's reader takes it (a ConfigError would be a bug here)
-    origin, insertion = _ends(config, data)
+    origin, insertion = (int(np.count_nonzero(mask)) for mask in patch.axis.ends(data.points, data.cells, muscle.end))
     record = {**MUSCLE_FILES, "tetrahedra": mesh_data.num_cells, "points": mesh_data.num_points,
               "tet_size": tet_size, "end": muscle.end, "volume": mesh_data.volume(), "enclosed_volume": enclosed,
-              "origin_triangles": origin, "insertion_triangles": insertion,
+              "base_volume": patch.base_volume, "axis": list(patch.axis.direction), "axis_centre": patch.axis.centre,
+              "half_length": patch.axis.half_length, "origin_triangles": origin, "insertion_triangles": insertion,
+              "flat_end_tetrahedra": _flat_end_tetrahedra(mesh_data),
               "boundaries": sorted(mesh_data.boundary_names), "fixed": list(muscle.fixed)}
     log.info("muscle: %d tetrahedra, volume %.9g (membrane %.9g); %s", mesh_data.num_cells, record["volume"],
              enclosed, out / MUSCLE_FILES["config"])

@@ -21,7 +21,9 @@
    end each obstacle's report (penetration, force, contact fraction, active nodes);
 5. the deformed surface per step of a ramp or list (the final state of a volume or fraction stop): an XDMF time
    series of u (surface.xdmf) and VTU files (surface_NNNN.vtu);
-6. [muscle] (a clamped disc): the final surface closed with its flat rest shape as the base, filled with
+6. [muscle] (a clamped disc, or a file's patch of one clamped rim; [extrusion] before the inflation likewise;
+   every volume then measured from the patch at rest, model.experiments.membrane_phases): the final surface
+   closed with the patch at rest (the disc's flat one) as the base, filled with
    tetrahedra and given the Laplace fibre field (model.experiments.membrane.close_and_mesh, the thesis' ch.
    3.3.3), written as muscle.msh (gmsh, physical groups muscle; patch, base, origin, insertion), fibres.npy (a0
    per tetrahedron in the file's cell order), muscle.vtu (the tetrahedra with the cell data fibre_direction) and
@@ -50,7 +52,7 @@ from forms.membrane import membrane_law
 from model.config.membrane import MUSCLE_FILES, MembraneRunConfig
 from model.domain.distribute import build_domain
 from model.errors import SolveFailed
-from model.experiments.membrane_phases import _check_ends, _extrusion, _muscle
+from model.experiments.membrane_phases import _extrusion, _muscle, _patch
 from model.experiments.membrane_records import _obstacle_name, _obstacle_summary, _step_record, _Writer
 from model.experiments.membrane_surface import _facing_side, _file_bump, _file_surface, _orientation, _surface
 from model.output.writer import SUMMARY, remove_earlier_run, write_json_atomic
@@ -105,15 +107,17 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         orientation = _orientation(config) if m.surface != "closed_can" else \
             triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     num_points = comm.bcast(len(data.points) if comm.rank == 0 else None)
-    if config.muscle is not None:
-        _check_ends(config, data, comm)
+    scale = surface_file.radius if surface_file is not None else m.radius
+    # [extrusion], [muscle]: the rim, the base volume (volumes from the rest patch) and the fibre axis, checked
+    patch = _patch(config, flat, comm) if config.muscle is not None or config.extrusion is not None else None
     extrusion = None
     if config.extrusion is not None:  # the first phase: data becomes the smoothed rest shape (rank 0)
-        data, extrusion = _extrusion(config, law, flat, num_points, comm)
+        data, extrusion = _extrusion(config, law, flat, patch, scale, num_points, comm)
         orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     domain = build_domain(comm, data)
     problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree,
-                              freeze_on_contact=inflation.freeze_on_contact, unit_area=inflation.unit_area)
+                              freeze_on_contact=inflation.freeze_on_contact, unit_area=inflation.unit_area,
+                              base_volume=patch.base_volume if patch is not None else 0.0)
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]
@@ -129,9 +133,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
             (lambda x: 1.0)
         problem.u.interpolate(lambda x: np.vstack([0 * x[0], 0 * x[0],
                                                    side(x) * bump * (1 - (x[0]**2 + x[1]**2) / m.radius**2)]))
-    if surface_file is not None:
+    if surface_file is not None and extrusion is None:
         _file_bump(config, surface_file, problem, comm)
-    scale = surface_file.radius if surface_file is not None else m.radius
     units = config.units
     summary: dict[str, Any] = {
         "kind": "membrane", "config": config.document, "status": "running",
@@ -150,6 +153,8 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         "units": {"system": units.system, **{d: units.unit(d) for d in ("length", "stress", "energy", "volume")}},
         "steps": [], "contacts": [], "wall_time_s": 0.0,
     }
+    if patch is not None:
+        summary["surface"]["base_volume"] = patch.base_volume
     if extrusion is not None:
         summary["extrusion"] = extrusion
     if surface_file is not None:
@@ -212,7 +217,7 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
             summary["steps"].append(summary["steps"].pop(accepted))
             writer.write(steps[-1].pressure)
         if config.muscle is not None:
-            summary["muscle"] = _muscle(config, problem, flat, num_points, out, comm)
+            summary["muscle"] = _muscle(config, problem, flat, patch, num_points, out, comm)
             writer.files += list(MUSCLE_FILES.values())
     except RuntimeError as err:
         error = str(err)

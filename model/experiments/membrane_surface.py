@@ -1,6 +1,8 @@
 """The surface of a membrane run (model.experiments.membrane_run): a built-in generator's (meshes.membrane) or the
-user's file (meshes.surface_file) read and checked on rank 0 (borders, regions, contacts' names: a ConfigError
-naming the key and the file before the output folder is made), the rest normals and the starting bump."""
+user's file (meshes.surface_file) read and checked on rank 0 (borders, regions, contacts' names; with [extrusion]
+or [muscle] one patch with one rim, disc topology, whose whole open boundary, and nothing else, is clamped: a
+ConfigError naming the key and the file before the output folder is made), the rest normals and the starting
+bump."""
 
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from meshes.membrane import (
     sphere_octant,
     vertex_normals,
 )
-from meshes.surface_file import oriented_cells, read_surface
+from meshes.surface_file import oriented_cells, patch_topology, read_surface
 from model.config.membrane import MembraneRunConfig
 from model.errors import ConfigError
 from model.experiments.membrane import set_nodal_displacement
@@ -92,6 +94,53 @@ def _check_contacts(config: MembraneRunConfig, data: SurfaceMeshData) -> None:
                               "membrane contact needs two separate sheets: a shared node would be its own partner)")
 
 
+def _needs(config: MembraneRunConfig) -> str:
+    """The phases that close the patch into a muscle and their verb, for the messages: "[muscle] needs",
+    "[extrusion] and [muscle] need"."""
+    names = [name for name, section in (("[extrusion]", config.extrusion), ("[muscle]", config.muscle))
+             if section is not None]
+    return f"{' and '.join(names)} {'needs' if len(names) == 1 else 'need'}"
+
+
+def _check_patch(config: MembraneRunConfig, data: SurfaceMeshData) -> None:
+    """[extrusion], [muscle]: one piece with one boundary loop, a disc (meshes.surface_file.patch_topology; the
+    orientation is already consistent); ConfigError naming membrane.file."""
+    m = config.membrane
+    need = f"{_needs(config)} one patch with one rim"
+    topology = patch_topology(data.cells)
+    if topology.pieces > 1:
+        raise ConfigError(f"membrane.file: {m.file} has {topology.pieces} separate pieces; {need}")
+    if topology.loops == 0:
+        raise ConfigError(f"membrane.file: {m.file} is a closed surface (no boundary loop); {need}")
+    if topology.loops > 1:
+        raise ConfigError(f"membrane.file: {m.file} has {topology.loops} boundary loops; {need}")
+    if not topology.is_disc:
+        raise ConfigError(f"membrane.file: {m.file} has one boundary loop but Euler characteristic V - E + F = "
+                          f"{topology.euler} (a disc's is 1: the patch has handles); {need}")
+
+
+def _check_rim(config: MembraneRunConfig, data: SurfaceMeshData) -> None:
+    """[extrusion], [muscle]: the Dirichlet border is the patch's whole open boundary (the rim the base is closed
+    on) and nothing inside it (a clamped node inside would be shared by the patch and the base: the closed surface
+    pinched); ConfigError naming membrane.fixed."""
+    m = config.membrane
+    held = np.sort(np.concatenate([data.facets[data.facet_tags == data.boundary_names[name]] for name in m.border]),
+                   axis=1)
+    directed = np.concatenate([data.cells[:, [0, 1]], data.cells[:, [1, 2]], data.cells[:, [2, 0]]])
+    edges, counts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    rim = edges[counts == 1]
+    n = len(data.points)
+    free = ~np.isin(rim[:, 0] * n + rim[:, 1], held[:, 0] * n + held[:, 1])
+    inside = ~np.isin(held[:, 0] * n + held[:, 1], rim[:, 0] * n + rim[:, 1])
+    for mask, edge, what in ((free, rim, f"of the rim's {len(rim)} edges are not held"),
+                             (inside, held, "held edges are inside the patch, not on its rim")):
+        if np.any(mask):
+            a, b = edge[np.flatnonzero(mask)[0]]
+            raise ConfigError(f"membrane.fixed: {m.file}: {int(np.count_nonzero(mask))} {what}, e.g. the edge of "
+                              f"points {data.points[a].tolist()} and {data.points[b].tolist()}; {_needs(config)} "
+                              "the whole rim clamped and nothing else (the base is closed on it)")
+
+
 def _read_file_surface(config: MembraneRunConfig) -> tuple[SurfaceMeshData, tuple[float, float, float], float,
                                                             tuple[tuple[str, np.ndarray, float], ...] | None]:
     """Rank 0: read and check the file (meshes.surface_file), orient its triangles, check the Dirichlet border's
@@ -112,6 +161,9 @@ def _read_file_surface(config: MembraneRunConfig) -> tuple[SurfaceMeshData, tupl
         raise ConfigError(f"{key}: {m.file}: {err}{hint}") from None
     data = SurfaceMeshData(data.points, cells, data.cell_tags, data.facets, data.facet_tags, data.region_names,
                            data.boundary_names)
+    patch = config.muscle is not None or config.extrusion is not None
+    if patch:
+        _check_patch(config, data)
     fixed = []
     for name in m.border:
         key = f"membrane.fixed.{name}" if m.fixed is not None else "membrane.fixed"
@@ -123,6 +175,8 @@ def _read_file_surface(config: MembraneRunConfig) -> tuple[SurfaceMeshData, tupl
             raise ConfigError(f"{key}: {m.file} has no edges on {name!r} (a closed surface has no open boundary: "
                               "give the Dirichlet border)")
         fixed.append(edges.reshape(-1))
+    if patch:
+        _check_rim(config, data)
     _check_contacts(config, data)
     fixed_nodes = np.unique(np.concatenate(fixed)) if fixed else np.arange(len(data.points))
     centre, radius = _bump_centre(config, data.points[fixed_nodes], str(m.file))

@@ -140,16 +140,21 @@ class MembraneProblem:
     terms added to Pi, model.problem.membrane_contact). ``freeze_on_contact``: the pressure per node
     (``nodal_pressure``, a scalar P1 Function; ``frozen``, a bool per owned node; module docstring), ``energy``
     then without the pressure term; ``unit_area``: the thesis' unit-area nodal force (module docstring).
+    ``base_volume``: a constant V_b that ``volume`` reports V(x) from, V(x) - V_b (the energy's derivatives do not
+    change): for a patch clamped on a rim that is not in a plane through the origin, V_b = V(X_b) of the patch at
+    rest (the same cone formula) makes V(x) - V_b the volume between x and the rest patch (the two close on the
+    clamped rim: the divergence theorem; model.experiments.membrane's muscle), independent of the origin.
     """
 
     def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
                  fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2,
-                 freeze_on_contact: bool = False, unit_area: bool = False) -> None:
+                 freeze_on_contact: bool = False, unit_area: bool = False, base_volume: float = 0.0) -> None:
         msh = domain.mesh
         if msh.topology.dim != 2 or msh.geometry.dim != 3:
             raise ValueError(f"membrane: needs a surface mesh (tdim 2, gdim 3), got tdim {msh.topology.dim}, "
                              f"gdim {msh.geometry.dim}")
         self.domain, self.law = domain, law
+        self.base_volume = float(base_volume)
         self.V = compat.function_space(msh, "Lagrange", 1, (3,))
         self.u = fem.Function(self.V, name="displacement")
         self.pressure = fem.Constant(msh, PETSc.ScalarType(0.0))
@@ -257,8 +262,8 @@ class MembraneProblem:
         return float(self.domain.mesh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
 
     def volume(self) -> float:
-        """V(x) at the current u (collective)."""
-        return self._sum(self._volume)
+        """V(x) - base_volume at the current u (collective)."""
+        return self._sum(self._volume) - self.base_volume
 
     def reference_area(self) -> float:
         """The rest surface's area (collective)."""
