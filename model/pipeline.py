@@ -420,6 +420,18 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
     return made
 
 
+def _check_matrix(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None) -> None:
+    """ConfigError for [solver] matrix = "nest" where the nested Jacobian cannot serve (linear.matrix_kind with the
+    preset and options the solver will have), before the scale check's solve."""
+    solver = config.solver
+    if solver.method != "newton" or solver.matrix != "nest":
+        return
+    vi = any(getattr(c, "method", None) == "vi" for c in config.contacts)
+    choice = linear.resolve(problem, solver.linear, config.petsc_options, vi=vi)
+    linear.matrix_kind(problem, "nest", {**choice.options, **config.petsc_options}, tangent=solver.tangent,
+                       bounds=vi and bool(contacts))
+
+
 def newton_of(solver: Any) -> NewtonSolver | None:
     """The NewtonSolver inside a solver (itself, or the one a contact solver wraps), or None (Projective Dynamics)."""
     while solver is not None and not isinstance(solver, NewtonSolver):
@@ -536,6 +548,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         remove_earlier_run(directory, comm)  # before any solve and before anything is written there
     from model.solvers.scale import scale_check
 
+    _check_matrix(problem, config, setup.contacts)  # [solver] matrix = "nest" where it cannot serve: before any solve
     scale = scale_check(problem, config)  # before any solve: loads, moduli and size against the units
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
     if dynamic and config.dynamics.initial == "equilibrium" and earlier is None:

@@ -45,15 +45,30 @@ def _random_state(problem: Any, seed: int = 3) -> None:
     problem.update_state()
 
 
-@pytest.mark.parametrize("law", [{"law": "neo_hookean", "E": 1.0e4, "nu": 0.4999},
-                                 {"law": "mooney_rivlin", "c1": 1.0e3, "c2": 5.0e2, "K": float("inf")}],
-                         ids=["nearly_incompressible", "incompressible"])
-def test_blocks_are_the_assembled_jacobian(law: dict[str, Any]) -> None:
+NEO_HOOKEAN = {"law": "neo_hookean", "E": 1.0e4, "nu": 0.4999}
+#: obstacles pressing on the bar's lower face z = 0 at rest (their penalties' conditionals in every block)
+PLANE = {"surface": "zmin", "obstacle": "plane", "point": [0.0, 0.0, 0.004], "normal": [0.0, 0.0, 1.0],
+         "method": "penalty", "penalty": 1.0e6}
+CAPSULE = {"surface": "zmin", "obstacle": "capsule", "a": [0.0, 0.5, -0.2], "b": [2.0, 0.5, -0.2], "radius": 0.205,
+           "method": "penalty", "penalty": 1.0e6}
+
+
+@pytest.mark.parametrize(("law", "contact"), [
+    (NEO_HOOKEAN, None),
+    ({"law": "mooney_rivlin", "c1": 1.0e3, "c2": 5.0e2, "K": float("inf")}, None),
+    (NEO_HOOKEAN, PLANE),
+    (NEO_HOOKEAN, {**PLANE, "augmented": True}),
+    (NEO_HOOKEAN, CAPSULE),
+], ids=["nearly_incompressible", "incompressible", "penalty_plane", "augmented_plane", "penalty_capsule"])
+def test_blocks_are_the_assembled_jacobian(law: dict[str, Any], contact: dict[str, Any] | None) -> None:
     """J_nest x = J x for random x (both in the mixed space's layout, through the block layout's permutation),
     at a state off the rest, with the clamped face's Dirichlet rows (identity rows and columns): to round-off.
-    The incompressible law has no p-p term (J_pp = 0: a zero block with the cells' pattern)."""
+    The incompressible law has no p-p term (J_pp = 0: a zero block with the cells' pattern); the obstacles'
+    penalties put conditional(c, 0, 0) into the blocks without displacement, which must vanish there."""
     raw = bar(3, 0.4999)
     raw["material"] = [{"region": "all", **law}]
+    if contact is not None:
+        raw["contact"] = [contact]
     problem = _problem(raw)
     _random_state(problem)
     _, jacobian = problem.forms
@@ -111,11 +126,13 @@ def test_fieldsplit_takes_the_blocks_as_they_are() -> None:
 
 
 def test_runs_agree_with_the_assembled_matrix(shared_tmp: Path) -> None:
-    """The bar at nu = 0.4999 with the iterative preset: "auto" uses the nest, "aij" the assembled matrix; the
-    reactions and the strain energy agree to 1e-8 (ksp_rtol 1e-12), and summary.json says which was used."""
+    """The bar at nu = 0.4999 with the iterative preset, pressed on a plane (penalty): "auto" uses the nest, "aij"
+    the assembled matrix; the reactions and the strain energy agree to 1e-8 (ksp_rtol 1e-12), and summary.json
+    says which was used."""
     runs = {}
     for matrix in ("auto", "aij"):
         raw = quiet(bar(3, 0.4999), "iterative", TIGHT, steps=2)
+        raw["contact"] = [PLANE]
         raw["solver"]["matrix"] = matrix
         runs[matrix] = run_raw(copy.deepcopy(raw), shared_tmp / matrix)
     nest, aij = runs["auto"], runs["aij"]
@@ -134,7 +151,15 @@ def test_runs_agree_with_the_assembled_matrix(shared_tmp: Path) -> None:
     ({"solver": {"linear": "direct", "matrix": "nest"}},
      r"^solver\.matrix: \"nest\" needs a fieldsplit preconditioner \(the iterative preset\), not pc_type = 'lu'"),
 ])
-def test_nest_where_it_cannot_serve_is_a_config_error(shared_tmp: Path, change: dict[str, Any], message: str) -> None:
+def test_nest_where_it_cannot_serve_is_a_config_error(shared_tmp: Path, change: dict[str, Any], message: str,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """Refused before any solve: the scale check's linear solve (the first solve of a run) never starts."""
+    import model.solvers.scale as scale
+
+    def no_solve(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("the scale check's solve started")
+
+    monkeypatch.setattr(scale, "linear_first_increment", no_solve)
     raw = quiet(bar(2, 0.3), "iterative", steps=1)
     raw["solver"]["matrix"] = "nest"
     raw.update(change)

@@ -121,17 +121,24 @@ def _extrusion(config: MembraneRunConfig, law: MembraneLaw, flat: SurfaceMeshDat
     except RuntimeError as err:
         raise SolveFailed(f"extrusion: the first inflation failed: {err}") from None
     inflated = deformed_points(first, num_points)
-    rest, record = None, None
-    if comm.rank == 0:
-        smoothing = smooth_rest_shape(inflated, flat.cells, rim, e.rest_volume + base)  # its volumes: V, not V - V_b
-        rest = SurfaceMeshData(smoothing.points, flat.cells, flat.cell_tags, flat.facets, flat.facet_tags,
-                               flat.region_names, flat.boundary_names)
-        record = {"offset": e.offset, "first_volume": e.first_volume, "rest_volume": e.rest_volume,
-                  "first_steps": [{"pressure": s.pressure, "volume": s.volume, "energy": s.energy,
-                                   "iterations": s.iterations} for s in steps],
-                  "smoothing_iterations": smoothing.iterations,
-                  "smoothed_volume": float(smoothing.volumes[-1]) - base}
-    record = comm.bcast(record)
+    rest, record, error = None, None, None
+    if comm.rank == 0:  # a failure here is every rank's (broadcast): no rank waits for the others forever
+        try:
+            smoothing = smooth_rest_shape(inflated, flat.cells, rim, e.rest_volume + base)  # volumes V, not V - V_b
+        except ValueError as err:
+            error = f"extrusion.rest_volume: {e.rest_volume!r}: the smoothing cannot reach it ({err}; volumes there " \
+                    f"measured from the origin; V_b = {base:.6g})"
+        else:
+            rest = SurfaceMeshData(smoothing.points, flat.cells, flat.cell_tags, flat.facets, flat.facet_tags,
+                                   flat.region_names, flat.boundary_names)
+            record = {"offset": e.offset, "first_volume": e.first_volume, "rest_volume": e.rest_volume,
+                      "first_steps": [{"pressure": s.pressure, "volume": s.volume, "energy": s.energy,
+                                       "iterations": s.iterations} for s in steps],
+                      "smoothing_iterations": smoothing.iterations,
+                      "smoothed_volume": float(smoothing.volumes[-1]) - base}
+    record, error = comm.bcast((record, error))
+    if error is not None:
+        raise SolveFailed(error)
     log.info("extrusion: V = %.6g at p = %.6g after %d steps; smoothed to V = %.6g in %d iterations",
              steps[-1].volume, steps[-1].pressure, len(steps), record["smoothed_volume"],
              record["smoothing_iterations"])

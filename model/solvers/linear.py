@@ -226,8 +226,10 @@ def matrix_kind(problem: ElasticityProblem, requested: str, options: Options, *,
 
     "auto" is "nest" where a nest can serve: the mixed formulation with ``pc_type`` fieldsplit (the iterative
     preset), the exact tangent, no variable bounds (VI contact) and no coupling terms added to the matrix
-    (contact between bodies, sliding: they add matrices in the mixed space's numbering); "aij" elsewhere, which
-    every preconditioner takes (LU needs it). "nest" where it cannot serve: ConfigError naming why.
+    (contact and sliding between bodies, problem.couplings: they add matrices in the mixed space's numbering;
+    obstacles, bones and sliding on bones are UFL energies, in the blocks' forms); "aij" elsewhere, which every
+    preconditioner takes (LU needs it). "nest" where it cannot serve: ConfigError naming why. (A block whose form
+    cannot be separated, model.solvers.nested.BlockError, falls back to "aij" under "auto" when the solver is made.)
     """
     if requested not in MATRICES:
         raise ConfigError(f"solver.matrix: {requested!r} is not one of {', '.join(MATRICES)}")

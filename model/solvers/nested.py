@@ -1,7 +1,7 @@
 """The mixed (Taylor-Hood) Jacobian as a nested matrix: one PETSc matrix per block of the fields u and p.
 
-    J = [[J_uu, J_up],      (PETSc MATNEST, its row and column index sets the fields' dofs in the mixed space's
-         [J_pu, J_pp]]       numbering: SNES's vectors keep the mixed space's layout)
+    J = [[J_uu, J_up],      (PETSc MATNEST in the block layout: on each rank its owned u dofs, then its owned
+         [J_pu, J_pp]]       p dofs; SNES works in it, the callbacks permute to and from the mixed space's layout)
 
 PCFieldSplit extracts the blocks of an assembled (AIJ) Jacobian by copying them (MatCreateSubMatrix: J_uu, J_pp,
 B = J_up and C = J_pu, together as large as J), at every Newton iteration, into matrices it keeps; from a MATNEST
@@ -15,7 +15,8 @@ assembled matrix): with W = V x Q the mixed space and E_u(v) = (v, 0), E_p(q) = 
 
 the mixed test and trial functions replaced by the embedded ones of the collapsed spaces V and Q, and the
 components that vanish removed before compilation (a component of a ListTensor taken by a fixed index is that
-component: the terms multiplied by a zero component drop out, so each kernel computes its own block only). The
+component, and a conditional whose two values are zero is zero: the terms multiplied by a zero component drop
+out, so each kernel computes its own block only; a block whose arguments are still not its own is an error). The
 coefficients (the state, fibres, loads) stay functions of W. Dirichlet conditions (on sub-spaces of W) act on the
 blocks as on the assembled matrix: the constrained rows and columns zeroed, 1 on the diagonal of the diagonal
 blocks (J_ij <- D_i J_ij D_j + (I - D_i) delta_ij, D the diagonal of the free dofs).
@@ -30,14 +31,15 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 from ufl.algorithms import expand_derivatives
+from ufl.algorithms.check_arities import ArityMismatch, check_form_arity
 from ufl.algorithms.map_integrands import map_integrand_dags
-from ufl.classes import FixedIndex, ListTensor, MultiIndex
+from ufl.classes import FixedIndex, ListTensor, MultiIndex, Zero
 from ufl.corealg.multifunction import MultiFunction
 
 from model.problem.elasticity import ElasticityProblem
 from model.solvers.linear import FIELDS, MixedFields
 
-__all__ = ["NestedJacobian", "block_forms"]
+__all__ = ["BlockError", "NestedJacobian", "block_forms"]
 
 
 class _FixedComponents(MultiFunction):
@@ -51,10 +53,22 @@ class _FixedComponents(MultiFunction):
             return operand[indices]
         return self.reuse_if_untouched(o, operand, indices)
 
+    def conditional(self, o: ufl.core.expr.Expr, condition: ufl.core.expr.Expr, true: ufl.core.expr.Expr,
+                    false: ufl.core.expr.Expr) -> ufl.core.expr.Expr:
+        """conditional(c, 0, 0) = 0 (e.g. a contact penalty's derivative in a block without displacement)."""
+        if isinstance(true, Zero) and isinstance(false, Zero):
+            return true
+        return self.reuse_if_untouched(o, condition, true, false)
+
+
+class BlockError(ValueError):
+    """A block of the mixed Jacobian whose form is not bilinear in its own test and trial functions after the
+    simplification (a construct _FixedComponents does not reduce): the assembled matrix serves instead."""
+
 
 def _embedding(argument: ufl.Argument, offset: int, size: int, total: int) -> ufl.core.expr.Expr:
     """The vector of ``total`` components holding ``argument``'s ``size`` components from ``offset``, zero elsewhere."""
-    zero = ufl.classes.Zero()
+    zero = Zero()
     if size == 1 and argument.ufl_shape == ():
         components = [argument]
     else:
@@ -82,6 +96,11 @@ def block_forms(problem: ElasticityProblem, spaces: list[fem.FunctionSpace]) -> 
                        trial: _embedding(du, offsets[j], sizes[j], total)}
             form = expand_derivatives(ufl.replace(jacobian, mapping))
             form = map_integrand_dags(_FixedComponents(), form)
+            try:
+                check_form_arity(form, (v, du))
+            except ArityMismatch as err:
+                raise BlockError(f"the Jacobian's block ({FIELDS[i]}, {FIELDS[j]}) is not bilinear in its own "
+                                 f"arguments after simplification: {err}") from None
             if form.empty():  # e.g. J_pp of incompressible laws: a zero form, so that the block has a pattern
                 zero = fem.Constant(problem.domain.mesh, PETSc.ScalarType(0.0))
                 form = zero * _first(du) * _first(v) * problem.dx
@@ -120,6 +139,7 @@ class NestedJacobian:
         # no MatAssembly of the nest before the blocks hold values: it would squeeze their empty preallocation
         self.matrix = PETSc.Mat().createNest(self.blocks, isrows=index_sets, iscols=index_sets,
                                              comm=problem.domain.mesh.comm)
+        # the Dirichlet conditions' dofs, once: no solver adds conditions to a problem after it is made
         self.free = [self._free(fields.spaces[name], fields.parents[name]) for name in FIELDS]
         #: the mixed space's local dof of each owned row of the block layout
         self.permutation = np.concatenate([

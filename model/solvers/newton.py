@@ -295,12 +295,10 @@ class NewtonSolver:
         self.fields: linear.MixedFields | None = None
         self.nested = None
         self.x = compat.petsc_vector(problem.solution).copy()
-        if self.matrix == "nest":  # SNES works in the nest's block layout (model.solvers.nested), x and b
-            from model.solvers.nested import NestedJacobian  # here in the mixed space's are the callbacks' own
-
-            self.fields = linear.MixedFields(problem, nested=True)
-            self.nested = NestedJacobian(problem, self.fields)
-            self.A = self.nested.matrix
+        if self.matrix == "nest":
+            self._make_nest(matrix)
+        if self.matrix == "nest":  # SNES works in the nest's block layout (model.solvers.nested), x and b here
+            self.A = self.nested.matrix  # in the mixed space's are the callbacks' own
             self._mixed_x, self._mixed_b = self.x, self.b
             self.x, self.b = self.nested.block_vector(), self.nested.block_vector()
         else:
@@ -339,6 +337,7 @@ class NewtonSolver:
         unknown = [k for k in unused_options(self.prefix, self.user_options) if not read_later(k)]
         if unknown:
             self._delete_options()
+            self.destroy_petsc()
             from model.errors import ConfigError
 
             raise ConfigError(f"solver.petsc_options.{unknown[0]}: PETSc does not use this option with the "
@@ -349,6 +348,24 @@ class NewtonSolver:
         self.bounds = bounds
         self.xl = self.x.duplicate() if bounds is not None else None
         self.xu = self.x.duplicate() if bounds is not None else None
+
+    def _make_nest(self, requested: str) -> None:
+        """The nested Jacobian and its fields; where a block's form cannot be separated (nested.BlockError): the
+        assembled matrix under "auto", a ConfigError under "nest"."""
+        from model.solvers.nested import BlockError, NestedJacobian
+
+        self.fields = linear.MixedFields(self.problem, nested=True)
+        try:
+            self.nested = NestedJacobian(self.problem, self.fields)
+        except BlockError as err:
+            self.fields.destroy()
+            self.fields = None
+            if requested == "nest":
+                from model.errors import ConfigError
+
+                raise ConfigError(f"solver.matrix: \"nest\": {err}; use \"auto\" or \"aij\"") from None
+            log.info("%s: the assembled matrix instead", err)
+            self.matrix = "aij"
 
     def _mixed(self, x: PETSc.Vec) -> PETSc.Vec:
         """x in the mixed space's layout: x itself, or (nest) its permutation, in a work vector of the solver."""
@@ -557,6 +574,12 @@ class NewtonSolver:
 
     def destroy(self) -> None:
         self._delete_options()
+        self.destroy_petsc()
+        for coupling in self.problem.couplings:  # their matrices (BodyContact.destroy: made again when needed)
+            coupling.destroy()
+
+    def destroy_petsc(self) -> None:
+        """Destroy the solver's own PETSc objects (SNES, matrices, vectors, near null space, fields)."""
         self.snes.destroy()
         if self.nested is not None:
             self.nested.destroy()  # the nest (self.A) and its blocks
@@ -566,15 +589,13 @@ class NewtonSolver:
             self.A.destroy()
         self.b.destroy()
         self.x.destroy()
-        for bound in (self.xl, self.xu):
+        for bound in (getattr(self, "xl", None), getattr(self, "xu", None)):  # none yet in __init__'s refusal
             if bound is not None:
                 bound.destroy()
         if self.near_null_space is not None:
             self.near_null_space.destroy()
         if self.fields is not None:
             self.fields.destroy()
-        for coupling in self.problem.couplings:  # their matrices (BodyContact.destroy: made again when needed)
-            coupling.destroy()
 
 
 def free_garbage(comm: MPI.Comm) -> None:

@@ -281,10 +281,29 @@ def _linear_solver(problem: ElasticityProblem, A: PETSc.Mat,
     return ksp, release, 10.0 * ITERATIVE_RTOL
 
 
-def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | None:
+def _nested(problem: ElasticityProblem, matrix: str) -> tuple[Any, Any]:
+    """(fields, NestedJacobian) for the check's iterative solve of a mixed problem, as the run's Newton solver makes
+    them under [solver] matrix = ``matrix`` (linear.matrix_kind with the iterative preset); (None, None) for the
+    assembled matrix (also where a block cannot be separated: nested.BlockError)."""
+    from model.solvers.nested import BlockError, NestedJacobian
+
+    if problem.formulation != "mixed" or not _iterative(problem) or matrix == "aij":
+        return None, None
+    if linear.matrix_kind(problem, "auto", linear.ITERATIVE_MIXED) != "nest":
+        return None, None
+    fields = linear.MixedFields(problem, nested=True)
+    try:
+        return fields, NestedJacobian(problem, fields)
+    except BlockError:
+        fields.destroy()
+        return None, None
+
+
+def linear_first_increment(problem: ElasticityProblem, t1: float, matrix: str = "auto") -> float | None:
     """The strain of du solving J(0) du = -R(0; t1) with du = g(t1) on the Dirichlet dofs (module docstring);
     None when the solve fails (a singular tangent, or a solution that does not satisfy the system).
-    The problem is left as it was (solution, load factor)."""
+    The problem is left as it was (solution, load factor). ``matrix``: [solver] matrix (the mixed formulation's
+    iterative solve with the nested Jacobian or the assembled one, as the run's)."""
     saved_solution = problem.solution.x.array.copy()
     saved_time = problem.time
     residual, jacobian = problem.forms
@@ -302,11 +321,8 @@ def linear_first_increment(problem: ElasticityProblem, t1: float) -> float | Non
         problem.invalidate_state()
         problem.update_state()
         bcs = problem.bcs
-        if problem.formulation == "mixed" and _iterative(problem):  # the run's nested Jacobian (model.solvers
-            from model.solvers.nested import NestedJacobian  # .nested): no copies of its blocks in the fieldsplit
-
-            fields = linear.MixedFields(problem, nested=True)
-            nested = NestedJacobian(problem, fields)
+        fields, nested = _nested(problem, matrix)  # the run's nested Jacobian: no copies of its blocks
+        if nested is not None:
             nested.assemble()
             A = nested.matrix
         else:
@@ -441,7 +457,7 @@ def scale_check(problem: ElasticityProblem, config: RunConfig) -> ScaleCheck:
     loads = _loads(config, size, scale, t1)
     strain = None
     if not dynamics.is_dynamic and _dirichlet_dofs(problem) > 0:
-        strain = linear_first_increment(problem, t1)
+        strain = linear_first_increment(problem, t1, getattr(config.solver, "matrix", "auto"))
     method = "linear solve"
     if strain is None:
         method = "estimate"
