@@ -149,7 +149,12 @@ def create_mesh(comm: Any, cells: np.ndarray, points: np.ndarray, degree: int = 
     always (its default), 0.9 only when asked (its default is GhostMode.none)."""
     points = np.asarray(points, dtype=np.float64)[:, :gdim]
     if LEGACY:
-        domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.Cell(cell, geometric_dimension=gdim), degree, dim=gdim))
+        # The equispaced variant from the start: FFCx 0.5 sets it on the mesh's coordinate element (in place) when it
+        # compiles the first form of the mesh that is not in the JIT cache, which changes the repr, so the hash,
+        # of every Argument made after it on the mesh's spaces: a form combining test functions made before and
+        # after such a compile failed with "Found different Arguments with same number and part" (cold cache only)
+        sub = ufl.FiniteElement("Lagrange", ufl.Cell(cell, geometric_dimension=gdim), degree, variant="equispaced")
+        domain = ufl.Mesh(ufl.VectorElement(sub, dim=gdim))
     else:
         domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, degree, shape=(gdim,)))
     cells, points = np.asarray(cells, dtype=np.int64), np.ascontiguousarray(points)
