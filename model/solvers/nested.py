@@ -98,7 +98,7 @@ def block_forms(problem: ElasticityProblem, spaces: list[fem.FunctionSpace]) -> 
             form = map_integrand_dags(_FixedComponents(), form)
             try:
                 check_form_arity(form, (v, du))
-            except ArityMismatch as err:
+            except (ArityMismatch, ValueError) as err:  # UFL 2024.2 raises ValueError formatting its ArityMismatch
                 raise BlockError(f"the Jacobian's block ({FIELDS[i]}, {FIELDS[j]}) is not bilinear in its own "
                                  f"arguments after simplification: {err}") from None
             if form.empty():  # e.g. J_pp of incompressible laws: a zero form, so that the block has a pattern
