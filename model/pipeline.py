@@ -405,7 +405,7 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
         options = {**config.petsc_options, "pd_max_iterations": solver.pd_max_iterations,
                    "pd_rtol": solver.pd_rtol, "pd_atol": solver.pd_atol}
         return ProjectiveDynamicsSolver(problem, options)
-    vi = any(getattr(c, "method", None) == "vi" for c in config.contacts)
+    vi = _vi(config)
     choice = linear.resolve(problem, solver.linear, config.petsc_options, vi=vi)
     if contacts:
         from model.solvers.contact import make_contact_solver
@@ -420,13 +420,18 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
     return made
 
 
+def _vi(config: RunConfig) -> bool:
+    """Whether a [[contact]] uses method "vi" (SNES VI: the direct preset, no nested Jacobian)."""
+    return any(getattr(c, "method", None) == "vi" for c in config.contacts)
+
+
 def _check_matrix(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None) -> None:
     """ConfigError for [solver] matrix = "nest" where the nested Jacobian cannot serve (linear.matrix_kind with the
     preset and options the solver will have), before the scale check's solve."""
     solver = config.solver
     if solver.method != "newton" or solver.matrix != "nest":
         return
-    vi = any(getattr(c, "method", None) == "vi" for c in config.contacts)
+    vi = _vi(config)
     choice = linear.resolve(problem, solver.linear, config.petsc_options, vi=vi)
     linear.matrix_kind(problem, "nest", {**choice.options, **config.petsc_options}, tangent=solver.tangent,
                        bounds=vi and bool(contacts))

@@ -24,6 +24,8 @@ blocks (J_ij <- D_i J_ij D_j + (I - D_i) delta_ij, D the diagonal of the free do
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -39,7 +41,9 @@ from ufl.corealg.multifunction import MultiFunction
 from model.problem.elasticity import ElasticityProblem
 from model.solvers.linear import FIELDS, MixedFields
 
-__all__ = ["BlockError", "NestedJacobian", "block_forms"]
+log = logging.getLogger(__name__)
+
+__all__ = ["BlockError", "NestedJacobian", "block_forms", "nested_jacobian"]
 
 
 class _FixedComponents(MultiFunction):
@@ -202,3 +206,15 @@ class NestedJacobian:
             if pair is not None:
                 for vector in pair:
                     vector.destroy()
+
+
+def nested_jacobian(problem: ElasticityProblem) -> tuple[MixedFields, NestedJacobian] | None:
+    """The fields (block layout) and the nested Jacobian of a mixed problem; None, with nothing left allocated,
+    where a block's form cannot be separated (BlockError: the caller uses the assembled matrix)."""
+    fields = MixedFields(problem, nested=True)
+    try:
+        return fields, NestedJacobian(problem, fields)
+    except BlockError as err:
+        fields.destroy()
+        log.info("%s: the assembled matrix instead", err)
+        return None

@@ -350,22 +350,20 @@ class NewtonSolver:
         self.xu = self.x.duplicate() if bounds is not None else None
 
     def _make_nest(self, requested: str) -> None:
-        """The nested Jacobian and its fields; where a block's form cannot be separated (nested.BlockError): the
-        assembled matrix under "auto", a ConfigError under "nest"."""
-        from model.solvers.nested import BlockError, NestedJacobian
+        """The nested Jacobian and its fields; where a block's form cannot be separated (nested.nested_jacobian
+        gives None): the assembled matrix under "auto", a ConfigError under "nest"."""
+        from model.solvers.nested import nested_jacobian
 
-        self.fields = linear.MixedFields(self.problem, nested=True)
-        try:
-            self.nested = NestedJacobian(self.problem, self.fields)
-        except BlockError as err:
-            self.fields.destroy()
-            self.fields = None
-            if requested == "nest":
-                from model.errors import ConfigError
+        made = nested_jacobian(self.problem)
+        if made is not None:
+            self.fields, self.nested = made
+            return
+        if requested == "nest":
+            from model.errors import ConfigError
 
-                raise ConfigError(f"solver.matrix: \"nest\": {err}; use \"auto\" or \"aij\"") from None
-            log.info("%s: the assembled matrix instead", err)
-            self.matrix = "aij"
+            raise ConfigError("solver.matrix: \"nest\": a block of the Jacobian cannot be separated (its form "
+                              "keeps terms without its own arguments); use \"auto\" or \"aij\"")
+        self.matrix = "aij"
 
     def _mixed(self, x: PETSc.Vec) -> PETSc.Vec:
         """x in the mixed space's layout: x itself, or (nest) its permutation, in a work vector of the solver."""

@@ -284,19 +284,14 @@ def _linear_solver(problem: ElasticityProblem, A: PETSc.Mat,
 def _nested(problem: ElasticityProblem, matrix: str) -> tuple[Any, Any]:
     """(fields, NestedJacobian) for the check's iterative solve of a mixed problem, as the run's Newton solver makes
     them under [solver] matrix = ``matrix`` (linear.matrix_kind with the iterative preset); (None, None) for the
-    assembled matrix (also where a block cannot be separated: nested.BlockError)."""
-    from model.solvers.nested import BlockError, NestedJacobian
+    assembled matrix (also where a block cannot be separated: nested.nested_jacobian)."""
+    from model.solvers.nested import nested_jacobian
 
     if problem.formulation != "mixed" or not _iterative(problem) or matrix == "aij":
         return None, None
     if linear.matrix_kind(problem, "auto", linear.ITERATIVE_MIXED) != "nest":
         return None, None
-    fields = linear.MixedFields(problem, nested=True)
-    try:
-        return fields, NestedJacobian(problem, fields)
-    except BlockError:
-        fields.destroy()
-        return None, None
+    return nested_jacobian(problem) or (None, None)
 
 
 def linear_first_increment(problem: ElasticityProblem, t1: float, matrix: str = "auto") -> float | None:
