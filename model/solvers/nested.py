@@ -85,7 +85,13 @@ def _embedding(argument: ufl.Argument, offset: int, size: int, total: int) -> uf
 def block_forms(problem: ElasticityProblem, spaces: list[fem.FunctionSpace]) -> list[list[ufl.Form]]:
     """The UFL forms J_ij of the mixed Jacobian's blocks on the collapsed spaces (module docstring); a block with no
     term (J_pp of a law without a bulk penalty) is the zero form 0 du_0 v_0 dx, which gives it the pattern of the
-    cells' couplings (PCFieldSplit's Schur complement reads J_pp)."""
+    cells' couplings (PCFieldSplit's Schur complement reads J_pp).
+
+    In real arithmetic the Conj and Real nodes are removed before the arity check (conj(x) = real(x) = x: UFL's
+    remove_complex_nodes, which FFCx applies to a real form before its own check). UFL differentiates
+    inner(a, b) = a : conj(b) into da : conj(b) + a : conj(db), so a law written with inner(F, F) (the fibre laws'
+    I1, I4 = |F a0|^2, C : C; stvk's E : E) leaves grad(du) : conj(F) + F : conj(grad(du)) in the Jacobian, which
+    the check reads as the sum of a du and a conj(du) term, not linear in du, where it is 2 F : grad(du)."""
     jacobian = expand_derivatives(ufl.derivative(problem.residual_form, problem.solution,
                                                  ufl.TrialFunction(problem.space)))
     test, trial = sorted(jacobian.arguments(), key=lambda a: a.number())
