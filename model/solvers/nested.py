@@ -16,7 +16,8 @@ assembled matrix): with W = V x Q the mixed space and E_u(v) = (v, 0), E_p(q) = 
 the mixed test and trial functions replaced by the embedded ones of the collapsed spaces V and Q, and the
 components that vanish removed before compilation (a component of a ListTensor taken by a fixed index is that
 component, and a conditional whose two values are zero is zero: the terms multiplied by a zero component drop
-out, so each kernel computes its own block only; a block whose arguments are still not its own is an error). The
+out, so each kernel computes its own block only; in real arithmetic conj(x) = real(x) = x, so the Conj and Real
+nodes go too, as FFCx removes them from a real form; a block whose arguments are still not its own is an error). The
 coefficients (the state, fibres, loads) stay functions of W. Dirichlet conditions (on sub-spaces of W) act on the
 blocks as on the assembled matrix: the constrained rows and columns zeroed, 1 on the diagonal of the diagonal
 blocks (J_ij <- D_i J_ij D_j + (I - D_i) delta_ij, D the diagonal of the free dofs).
@@ -35,6 +36,7 @@ from petsc4py import PETSc
 from ufl.algorithms import expand_derivatives
 from ufl.algorithms.check_arities import ArityMismatch, check_form_arity
 from ufl.algorithms.map_integrands import map_integrand_dags
+from ufl.algorithms.remove_complex_nodes import remove_complex_nodes
 from ufl.classes import FixedIndex, ListTensor, MultiIndex, Zero
 from ufl.corealg.multifunction import MultiFunction
 
@@ -83,13 +85,20 @@ def _embedding(argument: ufl.Argument, offset: int, size: int, total: int) -> uf
 def block_forms(problem: ElasticityProblem, spaces: list[fem.FunctionSpace]) -> list[list[ufl.Form]]:
     """The UFL forms J_ij of the mixed Jacobian's blocks on the collapsed spaces (module docstring); a block with no
     term (J_pp of a law without a bulk penalty) is the zero form 0 du_0 v_0 dx, which gives it the pattern of the
-    cells' couplings (PCFieldSplit's Schur complement reads J_pp)."""
+    cells' couplings (PCFieldSplit's Schur complement reads J_pp).
+
+    In real arithmetic the Conj and Real nodes are removed before the arity check (conj(x) = real(x) = x: UFL's
+    remove_complex_nodes, which FFCx applies to a real form before its own check). UFL differentiates
+    inner(a, b) = a : conj(b) into da : conj(b) + a : conj(db), so a law written with inner(F, F) (the fibre laws'
+    I1, I4 = |F a0|^2, C : C; stvk's E : E) leaves grad(du) : conj(F) + F : conj(grad(du)) in the Jacobian, which
+    the check reads as the sum of a du and a conj(du) term, not linear in du, where it is 2 F : grad(du)."""
     jacobian = expand_derivatives(ufl.derivative(problem.residual_form, problem.solution,
                                                  ufl.TrialFunction(problem.space)))
     test, trial = sorted(jacobian.arguments(), key=lambda a: a.number())
     sizes = [_value_size(s) for s in spaces]
     offsets = [sum(sizes[:i]) for i in range(len(sizes))]
     total = sum(sizes)
+    complex_mode = bool(np.iscomplexobj(PETSc.ScalarType(0)))
     out: list[list[ufl.Form]] = []
     for i, row_space in enumerate(spaces):
         row = []
@@ -100,8 +109,10 @@ def block_forms(problem: ElasticityProblem, spaces: list[fem.FunctionSpace]) -> 
                        trial: _embedding(du, offsets[j], sizes[j], total)}
             form = expand_derivatives(ufl.replace(jacobian, mapping))
             form = map_integrand_dags(_FixedComponents(), form)
+            if not complex_mode:
+                form = remove_complex_nodes(form)
             try:
-                check_form_arity(form, (v, du))
+                check_form_arity(form, (v, du), complex_mode)
             except (ArityMismatch, ValueError) as err:  # UFL 2024.2 raises ValueError formatting its ArityMismatch
                 raise BlockError(f"the Jacobian's block ({FIELDS[i]}, {FIELDS[j]}) is not bilinear in its own "
                                  f"arguments after simplification: {err}") from None
