@@ -116,7 +116,8 @@ def child(raw_json: str, out: str) -> None:
             "dofs": summary["dofs"], "status": summary["status"], "wall": wall, "peak_mb": peak / 1e6,
             "newton": sum(s["newton_iterations"] for s in summary["steps"]),
             "linear_per_newton": counts, "probes": last.get("probes", {}),
-            "linear": summary["solver"].get("linear")}), flush=True)
+            "linear": summary["solver"].get("linear"), "matrix": summary["solver"].get("matrix"),
+            "schur": summary["solver"].get("petsc_options", {}).get("pc_fieldsplit_schur_fact_type")}), flush=True)
 
 
 def _peak_memory() -> float:
@@ -214,9 +215,13 @@ def _good(r: dict[str, Any]) -> bool:
 
 
 def _series(rows: list[dict[str, Any]]) -> dict[tuple[Any, ...], list[dict[str, Any]]]:
+    """Rows by case, linear preset and ranks, and by the Schur factorisation where a row names one (the mixed
+    iterative preset's ``pc_fieldsplit_schur_fact_type``: its lower-factor rows and its full-factorisation rows are
+    two series)."""
     out: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
     for r in rows:
-        out.setdefault((r["case"], r["linear"], f"{r['ranks']} rank(s)"), []).append(r)
+        key = (r["case"], r["linear"], f"{r['ranks']} rank(s)")
+        out.setdefault(key + ((f"schur {r['schur']}",) if r.get("schur") else ()), []).append(r)
     return out
 
 
@@ -277,16 +282,19 @@ def report(rows: list[dict[str, Any]], plot_path: Path) -> None:
         k_from = fit([(r["dofs"], r["wall"]) for r in good if r["dofs"] >= FIT_FROM])
         k_all = fit([(r["dofs"], r["wall"]) for r in good])
         largest = max((r["dofs"] for r in good), default=0)
-        print(f"| {key[0]} | {key[1]} | {key[2]} | {'-' if k_from is None else f'{k_from:.2f}'} | "
+        print(f"| {key[0]} | {key[1]} | {', '.join(key[2:])} | {'-' if k_from is None else f'{k_from:.2f}'} | "
               f"{'-' if k_all is None else f'{k_all:.2f}'} | {largest} |")
-    one = {(r["case"], r["linear"], r["size"]): r for r in rows if r["ranks"] == 1 and _good(r)}
-    two = [r for r in rows if r["ranks"] == 2 and _good(r) and (r["case"], r["linear"], r["size"]) in one]
+    def same(r: dict[str, Any]) -> tuple[Any, ...]:
+        return r["case"], r["linear"], r["size"], r.get("schur") or ""
+
+    one = {same(r): r for r in rows if r["ranks"] == 1 and _good(r)}
+    two = [r for r in rows if r["ranks"] == 2 and _good(r) and same(r) in one]
     if two:
         print("\n| case | linear | dofs | time 1 rank / 2 ranks |")
         print("|---|---|---|---|")
         for r in two:
-            print(f"| {r['case']} | {r['linear']} | {r['dofs']} | "
-                  f"{one[(r['case'], r['linear'], r['size'])]['wall'] / r['wall']:.2f} |")
+            name = r["linear"] + (f", schur {r['schur']}" if r.get("schur") else "")
+            print(f"| {r['case']} | {name} | {r['dofs']} | {one[same(r)]['wall'] / r['wall']:.2f} |")
     plot(rows, plot_path)
 
 

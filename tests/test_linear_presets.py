@@ -114,8 +114,8 @@ def test_taylor_hood_iterations_do_not_grow(shared_tmp: Path) -> None:
     boxes (2 200 and 13 300 dofs): refining the mesh once (at nu 0.3 and at 0.4999) changes them by less than
     issue 10's 30 % serially and 45 % on 2 ranks (below); measured 1.15-1.26 in the file alone, up to 1.36 with
     the six rigid-body modes alone as the u block's near null space (docs/solvers.md, "The displacement block's
-    near null space"). Going from nu 0.3 to 0.4999 on either mesh: less than 35 % (measured 1.18-1.30 here,
-    1.30-1.31 at 1.2e5 dofs: the nu target of 30 % is met only at the limit, docs/solvers.md, "Scaling"). A
+    near null space"). Going from nu 0.3 to 0.4999 on either mesh: less than issue 10's 30 % (the full Schur
+    factorisation; the lower one grew by 18-30 % here and 33 % at 4.3e5 dofs, docs/solvers.md, "Scaling"). A
     preconditioner that lost its near null space or its Schur approximation would grow by far more."""
     counts = {}
     for n, nu in ((3, 0.3), (6, 0.3), (3, 0.4999), (6, 0.4999)):
@@ -131,7 +131,7 @@ def test_taylor_hood_iterations_do_not_grow(shared_tmp: Path) -> None:
         assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < refinement, (a, b, counts)
     for n in (3, 6):  # nu -> 1/2
         a, b = (n, 0.3), (n, 0.4999)
-        assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < 1.35, (a, b, counts)
+        assert max(counts[a], counts[b]) / min(counts[a], counts[b]) < 1.30, (a, b, counts)
 
 
 @pytest.mark.parametrize(("options", "key"), [
