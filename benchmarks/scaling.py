@@ -192,13 +192,15 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7.5, 5.0))
-    for key, series in _series(rows).items():
+    colours = plt.get_cmap("tab20").colors
+    for i, (key, series) in enumerate(_series(rows).items()):
         points = [(r["dofs"], r["wall"]) for r in series if _good(r)]
         if not points:
             continue
         slope = fit([p for p in points if p[0] >= FIT_FROM])
         label = " ".join(map(str, key)) + (f" (k = {slope:.2f})" if slope is not None else "")
-        ax.loglog(*zip(*points), marker="o", label=label)
+        ax.loglog(*zip(*points), marker="o", label=label, color=colours[i % len(colours)],
+                  linestyle="--" if "schur lower" in key else "-")  # the earlier preset dashed
     ax.set_xlabel("dofs")
     ax.set_ylabel("time to solution (s)")
     ax.grid(True, which="both", alpha=0.3)
