@@ -221,12 +221,7 @@ against_wall = np.abs(twin.u[ib] - wall.u[ib]).max() / scale
 print(f"force on b {twin.body_force['b'][0]:.5f} N (wall {wall.reports[1]['force'][0]:.5f} N); max |u| "
       f"{scale * 1e3:.3f} mm; off the mirror image {mirror:.1e}, off the wall run {against_wall:.1e} of max |u|; "
       f"penetration {twin.reports[0]['max_penetration'] * 1e6:.2f} um")
-from model.compat import DOLFINX_VERSION  # noqa: E402
-
-if DOLFINX_VERSION < (0, 9):
-    assert mirror < 1e-10 and against_wall < 1e-3
-elif mirror > 1e-10:  # Debian 13 since 2026-11-29: the asymmetric branch (docs/layers.md, Curved bellies in contact)
-    print("Debian 13: the pairs took the asymmetric branch (known, tests/test_twin_muscles.py)")
+assert mirror < 1e-10 and against_wall < 1e-3
 
 # %%
 if plt is not None:

@@ -17,21 +17,11 @@ from conftest import EXAMPLES
 
 from meshes import ParameterError, generate
 from meshes.twin_muscles import TWIN_MUSCLES_FACES, TWIN_MUSCLES_REGIONS, mesh_gap
-from model.compat import DOLFINX_VERSION
 from model.config import load, parse
 from model.experiments.twin_muscles import MESH, WALL_FACTOR, mirror_pairs, plane_raw, run_twin, twin_raw
 
 M = np.array([-1.0, 1.0, 1.0])
 K = (1e10, 1e11)
-#: Debian 13 (dolfinx 0.9), CI of 2026-11-29: the twin pairs at k = 1e10 converge to an asymmetric state (4.9e-4 of
-#: max |u| off the mirror image), also with the solver code of stop 28 that passed there on 2026-11-25: not this
-#: code's change; a newer trixie package or this machine's round-off picks the other branch of the two-pass pairs'
-#: bifurcation (docs/layers.md, "Curved bellies in contact"). Expected to fail there until analysed; Debian 12 holds.
-DEBIAN_13_BRANCH = pytest.mark.xfail(
-    DOLFINX_VERSION >= (0, 9), raises=AssertionError,
-    strict=False, reason="Debian 13: the twin pairs' asymmetric branch (docs/layers.md, Curved bellies in contact)")
-
-
 def test_the_mesh_is_two_mirror_images() -> None:
     """a's nodes, cells and named triangles are b's mirrored (exactly); the bellies are at least gap apart (the
     exact surfaces gap apart, the facets inside them); names and volumes as documented."""
@@ -60,7 +50,7 @@ def test_bad_parameters_are_refused(key: str, value: object) -> None:
 
 
 def test_the_example_is_the_experiments_run() -> None:
-    """examples/twin_muscles.toml is twin_raw() (k = 1e10, 4 steps, activation 1)."""
+    """examples/twin_muscles.toml is twin_raw() (k = 1e10, 8 steps, activation 1)."""
     shipped = load(EXAMPLES / "twin_muscles.toml")
     built = parse(twin_raw())
     for key in ("mesh", "discretization", "materials", "boundaries", "contacts", "loading", "petsc_options"):
@@ -79,7 +69,6 @@ def runs() -> dict[str, object]:
     return out
 
 
-@DEBIAN_13_BRANCH
 def test_twin_muscles_against_each_other_as_each_against_a_wall(runs: dict) -> None:
     """Mirror symmetry (1e-10 of max |u|), the same displacement and contact force as the wall with 4 k (to
     1e-3 of max |u| and 2e-3 of the force), forces on a and b equal and opposite, penetration ~ 1/k."""
@@ -113,7 +102,6 @@ def test_a_low_activation_leaves_the_gap_open(runs: dict) -> None:
     assert np.abs(low.u - free.u).max() < 1e-12
 
 
-@DEBIAN_13_BRANCH
 def test_augmented_pairs_reach_the_penalties_limit(runs: dict) -> None:
     """augmented = true (Uzawa updates of both pairs' pressures): mirror-symmetric, penetration below 1e-9 m, and
     the contact force is the two penalties' 1/k extrapolation to k -> infinity, f(1e11) + (f(1e11) - f(1e10)) / 9
