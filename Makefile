@@ -10,7 +10,7 @@ export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 MPIRUN := mpirun -n 2 --oversubscribe
 
-.PHONY: setup system demo test test-serial test-mpi lint benchmark release-data compare-releases clean
+.PHONY: setup system demo test test-serial test-mpi test-release lint benchmark release-data compare-releases clean
 
 #: 12 or 13: the Debian release this machine runs (the CI legs write their release data apart)
 DEBIAN := $(shell . /etc/os-release 2>/dev/null && echo $$VERSION_ID)
@@ -46,6 +46,21 @@ test-mpi: setup
 	$(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider --durations=15 tests
 
 test: test-serial test-mpi
+
+#: The tests of what differs between dolfinx releases (model/compat.py's paths: meshes and their files, every law
+#: assembled and solved, expressions, outputs, the solvers' presets and nested blocks, contact, membranes, verify,
+#: a cold JIT cache, MPI), serially and on 2 ranks: CI's Debian 13 leg (.ci/run), about a quarter of the suite,
+#: with the cross-release comparison of five runs and every law's verify references (make release-data). The
+#: whole suite on Debian 13: bash .ci/debian13 test.
+RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian energies mesh_files meshes \
+  gingerbread_mesh fibres polar_inverted parallel results_one_run provenance cli demos nested_jacobian \
+  linear_presets scale_check loadstepping line_search petsc_options contact body_contact twin_muscles \
+  self_contact membrane membrane_file verify_api verify_element verify_files cold_cache_arguments render \
+  render_mesh config_errors))
+
+test-release: setup
+	$(PY) -m pytest -q -n 2 --durations=10 $(RELEASE_TESTS)
+	$(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider --durations=10 $(RELEASE_TESTS)
 
 lint: setup
 	$(PY) -m ruff check forms model meshes tests benchmarks notebooks examples
