@@ -49,7 +49,7 @@ test: test-serial test-mpi
 
 #: The tests of what differs between dolfinx releases (model/compat.py's paths: meshes and their files, every law
 #: assembled and solved, expressions, outputs, the solvers' presets and nested blocks, contact, membranes, verify,
-#: a cold JIT cache, MPI), serially and on 2 ranks: CI's Debian 13 leg (.ci/run), about a quarter of the suite,
+#: a cold JIT cache, MPI), serially (and some on 2 ranks): CI's Debian 13 leg (.ci/run), a quarter of the suite,
 #: with the cross-release comparison of five runs and every law's verify references (make release-data). The
 #: whole suite on Debian 13: bash .ci/debian13 test.
 RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian energies mesh_files meshes \
@@ -58,9 +58,14 @@ RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian en
   self_contact membrane membrane_file verify_api verify_element verify_files cold_cache_arguments render \
   render_mesh config_errors))
 
+#: Of these, on 2 ranks: the partition-dependent paths (distributed meshes and their files, outputs, the nested
+#: blocks' index sets, contact between bodies, the JIT cache shared by the ranks).
+RELEASE_MPI_TESTS := $(addprefix tests/test_,$(addsuffix .py,parallel mesh_files results_one_run cold_cache_arguments \
+  body_contact nested_jacobian))
+
 test-release: setup
 	$(PY) -m pytest -q -n 2 --durations=10 $(RELEASE_TESTS)
-	$(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider --durations=10 $(RELEASE_TESTS)
+	$(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider --durations=10 $(RELEASE_MPI_TESTS)
 
 lint: setup
 	$(PY) -m ruff check forms model meshes tests benchmarks notebooks examples
