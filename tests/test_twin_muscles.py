@@ -22,6 +22,8 @@ from model.experiments.twin_muscles import MESH, WALL_FACTOR, mirror_pairs, plan
 
 M = np.array([-1.0, 1.0, 1.0])
 K = (1e10, 1e11)
+
+
 def test_the_mesh_is_two_mirror_images() -> None:
     """a's nodes, cells and named triangles are b's mirrored (exactly); the bellies are at least gap apart (the
     exact surfaces gap apart, the facets inside them); names and volumes as documented."""
