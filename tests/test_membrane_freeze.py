@@ -128,10 +128,48 @@ def test_freezing_lowers_the_contact_force_by_the_pressure_deficit():
     assert steps_frozen[-1].contact_fraction == pytest.approx(steps_free[-1].contact_fraction, rel=5e-2)
 
 
-def test_freezing_refuses_what_it_cannot_do():
+def _increasing_path(steps: list, below) -> list[float]:
+    """The pressures of an increasing path to the last step: the steps that stayed below the target (``below``)
+    in order of pressure, each above the last one kept, then the last step's."""
+    path: list[float] = []
+    for s in steps[:-1]:
+        if below(s) and (not path or s.pressure > path[-1]):
+            path.append(s.pressure)
+    return [*path, steps[-1].pressure]
+
+
+@pytest.mark.parametrize("stop", ["volume", "fraction"])
+def test_frozen_inflation_to_a_target_is_an_increasing_path(stop: str) -> None:
+    """inflate_to_volume with freeze_on_contact: the target volume (between the ramp's 4th and 5th steps, the
+    secant) or contact fraction (0.15, the bisection) is reached, nodes are frozen on the way, and the final state
+    (u, the frozen nodes and their pressures) is that of ``inflate`` along the increasing path of the steps that
+    stayed below the target and the final pressure, to round-off: the trials above the target are let go."""
+    _, _, ramp, _ = _against_plane(True)
     problem, _ = _disc(True)
-    with pytest.raises(ValueError, match="inflate_to_volume: not with freeze_on_contact"):
-        inflate_to_volume(problem, 1.0, 1e-3)
+    if stop == "volume":
+        target = 0.5 * (ramp[3].volume + ramp[4].volume)
+        steps = inflate_to_volume(problem, target, 2e-3)
+        assert steps[-1].volume == pytest.approx(target, rel=1e-6)
+        path = _increasing_path(steps, lambda s: s.volume < target)
+        assert any(s.pressure > steps[-1].pressure for s in steps)  # a trial above the target was let go
+    else:
+        steps = inflate_to_volume(problem, 10.0, 2e-3, contact_fraction=0.15)
+        assert steps[-1].contact_fraction >= 0.15
+        assert all(s.contact_fraction < 0.15 for s in steps if s.pressure < steps[-1].pressure)
+        path = _increasing_path(steps, lambda s: s.contact_fraction < 0.15)
+    assert ramp[2].pressure < steps[-1].pressure < ramp[4].pressure
+    assert steps[-1].frozen_nodes == problem.frozen_count() > 0
+    replay, _ = _disc(True)
+    again = inflate(replay, path)
+    assert again[-1].frozen_nodes == steps[-1].frozen_nodes
+    assert np.abs(replay.u.x.array - problem.u.x.array).max() <= 1e-10
+    assert np.abs(replay.nodal_pressure.x.array - problem.nodal_pressure.x.array).max() <= 1e-14
+    frozen = np.concatenate(COMM.allgather(problem.nodal_pressures()[problem.frozen]))
+    assert np.all(np.isin(frozen, path))  # each at a pressure of the path
+    assert len(set(frozen)) >= 3  # frozen at the steps of their first touch
+
+
+def test_freezing_refuses_what_it_cannot_do():
     plain, _ = _disc(False, plane=False)
     with pytest.raises(ValueError, match="freeze needs a problem made with freeze_on_contact=True"):
         plain.freeze(np.zeros(plain.V.dofmap.index_map.size_local, dtype=bool))
@@ -161,12 +199,23 @@ def test_freeze_on_contact_from_the_config(shared_tmp: Path) -> None:
     assert "frozen_nodes" not in plain["steps"][0]
 
 
+def test_frozen_target_volume_from_the_config(shared_tmp: Path) -> None:
+    """[inflation] target_volume with freeze_on_contact = true: the run reaches the volume of the solver's run
+    and summary.json's steps count the frozen nodes as the solver does."""
+    from model.experiments.membrane_run import run_membrane
+
+    _, _, ramp, _ = _against_plane(True)
+    target = 0.5 * (ramp[3].volume + ramp[4].volume)
+    summary = run_membrane(load_membrane(BALLOON, {**DISC, "inflation": {
+        "target_volume": target, "dp": 2e-3, "freeze_on_contact": True}}), shared_tmp / "freeze_volume", COMM)
+    problem, _ = _disc(True)
+    steps = inflate_to_volume(problem, target, 2e-3)
+    assert [s["frozen_nodes"] for s in summary["steps"]] == [s.frozen_nodes for s in steps]
+    assert summary["steps"][-1]["volume"] == pytest.approx(target, rel=1e-6)
+
+
 @pytest.mark.parametrize(("overrides", "message"), [
     ({"inflation.freeze_on_contact": "yes"}, r"^inflation\.freeze_on_contact: "),
-    ({"inflation": {"target_volume": 1.0, "freeze_on_contact": True}},
-     r"^inflation\.freeze_on_contact: needs a ramp or a list \(pressure / pressures\), not target_volume"),
-    ({"inflation": {"contact_fraction": 0.2, "freeze_on_contact": True}},
-     r"^inflation\.freeze_on_contact: needs a ramp or a list \(pressure / pressures\), not contact_fraction"),
     ({"inflation.unit_area": 1}, r"^inflation\.unit_area: "),
     ({"obstacle": []}, r"^inflation\.freeze_on_contact: needs an \[\[obstacle\]\] or a \[\[contact\]\] to touch$"),
 ])

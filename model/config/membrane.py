@@ -207,7 +207,8 @@ class InflationSection(Section):
                                                     default=4)
     freeze_on_contact: Flag = key(
         "the thesis' per-node pressure: a node that touches an [[obstacle]] or a [[contact]] keeps the pressure of "
-        "the step it first touched at, the others follow the ramp (pressure / pressures only)", default=False)
+        "the step it first touched at, the others follow the pressure (with target_volume / contact_fraction the "
+        "secant and the bisection reach each trial pressure from the last equilibrium below it)", default=False)
     unit_area: Flag = key(
         "the thesis' unit-area nodal pressure force f_i = (p_i / 3) sum_j n_j over the node's triangles (A_j = 1): "
         "the pressure is then a force per triangle, and the load grows with the number of triangles (not "
@@ -227,9 +228,6 @@ class InflationSection(Section):
             fail("only applies with pressure (a ramp)", "steps")
         if self.pressures is not None and any(b <= a for a, b in zip(self.pressures, self.pressures[1:])):
             fail("must increase", "pressures")
-        if self.freeze_on_contact and given[0] not in ("pressure", "pressures"):
-            fail(f"needs a ramp or a list (pressure / pressures), not {given[0]} (the secant and the bisection "
-                 "go back in pressure)", "freeze_on_contact")
         if given[0] in ("pressure", "pressures"):
             for k in ("dp", "max_steps"):
                 if k in self.model_fields_set:

@@ -234,6 +234,20 @@ class MembraneProblem:
         self.frozen |= np.asarray(nodes, dtype=bool)
         return self.frozen_count()
 
+    def state(self) -> tuple[np.ndarray, ...]:
+        """A copy of what an equilibrium leaves behind: u's values and, with ``freeze_on_contact``, the frozen
+        nodes and p_h's values (:meth:`restore` puts it back; an inflation that goes back to an earlier state)."""
+        if self.nodal_pressure is None:
+            return (self.u.x.array.copy(),)
+        return self.u.x.array.copy(), self.frozen.copy(), self.nodal_pressure.x.array.copy()
+
+    def restore(self, state: tuple[np.ndarray, ...]) -> None:
+        """Put back a :meth:`state` of this problem (u, and the frozen nodes with their pressures)."""
+        self.u.x.array[:] = state[0]
+        if self.nodal_pressure is not None:
+            self.frozen[:] = state[1]
+            self.nodal_pressure.x.array[:] = state[2]
+
     def frozen_count(self) -> int:
         """The number of frozen nodes over all ranks (0 without ``freeze_on_contact``). Collective."""
         if not self.freeze_on_contact:

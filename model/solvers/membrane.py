@@ -190,11 +190,13 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
     target. Augmented contacts: Uzawa rounds after every equilibrium (as in ``inflate``). RuntimeError if
     ``max_steps`` increments reach neither. ``on_step(step)`` is called after every equilibrium (growth, secant
     and bisection; collective: its answer must be the same on every rank); True stops the inflation there:
-    InflationStopped carries the steps so far (the last one's state in problem.u)."""
+    InflationStopped carries the steps so far (the last one's state in problem.u). With ``freeze_on_contact`` each
+    equilibrium freezes the nodes that touch at its pressure (as ``inflate``), and the secant and the bisection
+    reach every trial pressure in one increment from the last equilibrium below the target (its u, frozen nodes
+    and their pressures: problem.state), so the final state is that of an increasing path of pressures, the
+    pressures of the steps that stayed below the target and the final one (``_secant_from_below``; augmented
+    contacts' multipliers are not restored: the Uzawa rounds at each trial bring them to its pressure)."""
     uzawa = (uzawa_tolerance, max_uzawa)
-    if problem.freeze_on_contact:
-        raise ValueError("inflate_to_volume: not with freeze_on_contact (the secant and the bisection go back in "
-                         "pressure; freezing needs increasing pressures: inflate)")
     if contact_fraction is not None and not 0.0 < contact_fraction <= 1.0:
         raise ValueError(f"inflate_to_volume: contact_fraction must be in (0, 1], got {contact_fraction!r}")
     if contact_fraction is not None and not problem.contacts:
@@ -212,7 +214,7 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
 
     try:
         for _ in range(max_steps):
-            saved = problem.u.x.array.copy()
+            saved = problem.state()
             its = _solve_at(problem, newton, p, p + dp, cutbacks) + _uzawa(problem, newton, p + dp, *uzawa, cutbacks)
             p += dp
             steps.append(record(_step(problem, p, its)))
@@ -230,6 +232,10 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
             steps += _bisect_fraction(problem, newton, below.pressure, saved, above, contact_fraction,
                                       pressure_tolerance, cutbacks, uzawa, record)
             return steps
+        if problem.freeze_on_contact:
+            steps += _secant_from_below(problem, newton, below, saved, above, target_volume, tolerance, cutbacks,
+                                        uzawa, record)
+            return steps
         for _ in range(30):
             if abs(above.volume - target_volume) <= tolerance * target_volume:
                 break
@@ -244,26 +250,68 @@ def inflate_to_volume(problem: MembraneProblem, target_volume: float, dp: float,
     return steps
 
 
-def _bisect_fraction(problem: MembraneProblem, newton: FormNewton, p_low: float, u_low: np.ndarray,
+def _secant_from_below(problem: MembraneProblem, newton: FormNewton, low: InflationStep,
+                       low_state: tuple[np.ndarray, ...], high: InflationStep, target: float, rtol: float,
+                       cutbacks: int, uzawa: tuple[float, int],
+                       record: Callable[..., InflationStep]) -> list[InflationStep]:
+    """The target volume with frozen pressures (``freeze_on_contact``): V(low) < target <= V(high), the state at
+    ``high`` in problem.u. Each trial pressure p (the secant through the last two equilibria, bisection of the
+    bracket where the secant leaves it) is reached in one increment from the bracket's lower equilibrium
+    (``low_state``: u, the frozen nodes and their pressures), and freezes the nodes it touches at p, so the
+    accepted state is that of an increasing path of pressures, as a ramp would reach it (the nodes frozen by a
+    trial above the target are let go with its state). Stops at |V - target| <= ``rtol`` target; the equilibria
+    tried, the last the accepted one (the state left in problem.u)."""
+    high_state, tried = problem.state(), []
+    previous, last = low, high
+    for _ in range(60):
+        if abs(high.volume - target) <= rtol * target or high.pressure - low.pressure <= 1e-12 * high.pressure:
+            break
+        p_new = last.pressure + (target - last.volume) * (last.pressure - previous.pressure) / \
+            (last.volume - previous.volume) if last.volume != previous.volume else -1.0
+        if not low.pressure < p_new < high.pressure:
+            p_new = 0.5 * (low.pressure + high.pressure)
+        problem.restore(low_state)
+        its = _solve_at(problem, newton, low.pressure, p_new, cutbacks) + _uzawa(problem, newton, p_new, *uzawa,
+                                                                                cutbacks)
+        step = record(_step(problem, p_new, its), tried)
+        tried.append(step)
+        previous, last = last, step
+        if step.volume < target:
+            low, low_state = step, problem.state()
+            if abs(step.volume - target) <= rtol * target:
+                return tried
+        else:
+            high, high_state = step, problem.state()
+    problem.restore(high_state)
+    problem.set_pressure(high.pressure)
+    if abs(high.volume - target) > rtol * target:
+        log.warning("membrane: volume %.8g at p = %.8g, target %.8g not reached to %.1g (a jump of V in p)",
+                    high.volume, high.pressure, target, rtol)
+    return [*tried, high] if not tried or tried[-1] is not high else tried
+
+
+def _bisect_fraction(problem: MembraneProblem, newton: FormNewton, p_low: float, low: tuple[np.ndarray, ...],
                      high: InflationStep, target: float, rtol: float, cutbacks: int,
                      uzawa: tuple[float, int],
                      record: Callable[..., InflationStep]) -> list[InflationStep]:
     """Bisection on p in [p_low, high.pressure] for the smallest pressure with contact fraction >= target; the
-    equilibria tried, the last the accepted one (the state left in problem.u). ``record(step, tried)`` sees
-    every equilibrium tried (the stop hook of inflate_to_volume)."""
-    u_high, tried = problem.u.x.array.copy(), []
+    equilibria tried, the last the accepted one (the state left in problem.u). ``low``: the state at p_low
+    (problem.state(): u, and the frozen nodes with their pressures), from which every trial is reached in one
+    increment, so with ``freeze_on_contact`` the accepted state is that of an increasing path of pressures.
+    ``record(step, tried)`` sees every equilibrium tried (the stop hook of inflate_to_volume)."""
+    high_state, tried = problem.state(), []
     p_high = high.pressure
     while p_high - p_low > rtol * p_high:
         mid = 0.5 * (p_low + p_high)
-        problem.u.x.array[:] = u_low
+        problem.restore(low)
         its = _solve_at(problem, newton, p_low, mid, cutbacks) + _uzawa(problem, newton, mid, *uzawa, cutbacks)
         step = record(_step(problem, mid, its), tried)
         tried.append(step)
         if step.contact_fraction >= target:
-            p_high, u_high, high = mid, problem.u.x.array.copy(), step
+            p_high, high_state, high = mid, problem.state(), step
         else:
-            p_low, u_low = mid, problem.u.x.array.copy()
-    problem.u.x.array[:] = u_high
+            p_low, low = mid, problem.state()
+    problem.restore(high_state)
     problem.set_pressure(p_high)
     log.info("membrane: contact fraction %.4g >= %.4g at p = %.6g", high.contact_fraction, target, p_high)
     return [*tried, high]
