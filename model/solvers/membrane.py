@@ -287,7 +287,9 @@ def _secant_from_below(problem: MembraneProblem, newton: FormNewton, low: Inflat
     if abs(high.volume - target) > rtol * target:
         log.warning("membrane: volume %.8g at p = %.8g, target %.8g not reached to %.1g (a jump of V in p)",
                     high.volume, high.pressure, target, rtol)
-    return [*tried, high] if not tried or tried[-1] is not high else tried
+    if not tried:  # the growth step was within the tolerance: already the last step
+        return []
+    return tried if tried[-1] is high else [*tried, high]
 
 
 def _bisect_fraction(problem: MembraneProblem, newton: FormNewton, p_low: float, low: tuple[np.ndarray, ...],
