@@ -254,10 +254,11 @@ def run_config_snapshot(config: Any) -> dict[str, Any]:
     return {k: snapshot(getattr(config, k), k) for k in fields}
 
 
-#: examples that use what the old parser did not have (a law of the user's own; a .geo mesh, probe snap)
+#: examples that use what the old parser did not have (a law of the user's own; a .geo mesh, probe snap; the
+#: contact keys of the layered arms, self-contact and the twins)
 NEWER = ("guccione_beam", "spindle", "twisting_bar_render", "contact_bodies",
          "layered_arm", "layered_arm_touching", "layered_arm_flexion",
-         "layered_arm_gap", "self_contact_slot", "twin_muscles")  # keys the old parser did not have
+         "layered_arm_gap", "layered_arm_touching_flexion", "self_contact_slot", "twin_muscles")
 OLD_EXAMPLES = [p for p in EXAMPLE_FILES if p.stem not in NEWER]
 
 

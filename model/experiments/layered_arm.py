@@ -49,7 +49,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["GAP_MESH", "PAIRS", "TOUCHING_PAIRS", "ArmResult", "arm_config", "arm_raw", "compare_arms",
            "compare_flexion", "flexion_bones", "flexion_config", "flexion_raw", "gap_raw", "run_arm", "run_flexion",
-           "run_gap", "skin_difference", "body_balance"]
+           "run_gap", "run_touching_flexion", "skin_difference", "body_balance", "touching_flexion_raw",
+           "TOUCHING_FLEXION"]
 
 #: The segment's length (meshes.arm_segment's default; the bulge band is its middle fifth).
 LENGTH = 0.12
@@ -148,15 +149,26 @@ def flexion_config(layered: bool, angle: float = 30.0, size: float = 0.015, turn
 def flexion_raw(layered: bool, angle: float = 30.0, size: float = 0.015, turn_elements: int = 8, steps: int = 3,
                 k_sliding: float = 1e10, k_contact: float = 1e10, k_bone: float = 1e10,
                 tolerance: float = 1e-6, activations: tuple[float, float] = (1.0, 0.3),
-                petsc_options: dict[str, Any] | None = None) -> dict[str, Any]:
+                petsc_options: dict[str, Any] | None = None, touching: float | None = None,
+                sequential: bool = False) -> dict[str, Any]:
     """The elbow flexion by ``angle`` degrees of the conforming (``layered`` False) or the layered arm
     (examples/layered_arm_flexion.toml; module docstring): :func:`arm_config`'s materials, activations and (layered)
     pairs, with the segment's end faces attached to the bones :func:`flexion_bones` instead of clamped, and the
     skin in frictionless penalty contact (``k_bone``, nodal rule) with the humerus; ``petsc_options`` are added to
-    the solver's."""
-    raw = arm_raw(layered, size, turn_elements, steps, k_sliding, k_contact, tolerance, activations)
+    the solver's. ``touching`` (layered only): the muscles' spacing with layered_arm's touching = true
+    (examples/layered_arm_touching_flexion.toml: the bellies share a flat face, :data:`TOUCHING_PAIRS`, the muscles'
+    contact a plain penalty). ``sequential``: the activations rise over the first half of the load (t in [0,
+    1/2]) and the forearm turns over the second (t in [1/2, 1]), instead of both over the whole."""
+    raw = arm_raw(layered, size, turn_elements, steps, k_sliding, k_contact, tolerance, activations, touching,
+                  augmented=touching is None)
     prefix = "fat_" if layered else ""
     raw["bone"] = flexion_bones(angle)
+    if sequential:
+        for material in raw["material"]:
+            if "activation" in material:
+                a = material["activation"][-1][1]
+                material["activation"] = [[0.0, 0.0], [0.5, a], [1.0, a]]
+        raw["bone"][1]["hinge"]["angles"] = [[0.0, 0.0], [0.5, 0.0], [1.0, float(angle)]]
     raw["boundary"] = [{"on": on, "type": "attached", "bone": bone}
                        for on, bone in ((f"{prefix}proximal", "humerus"), ("a_origin", "humerus"),
                                         ("b_origin", "humerus"), (f"{prefix}distal", "forearm"),
@@ -168,6 +180,26 @@ def flexion_raw(layered: bool, angle: float = 30.0, size: float = 0.015, turn_el
     # sliding pairs (no consistent potential), backtracking on the total potential for the conforming arm
     raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8, **(petsc_options or {})}}
     return raw
+
+
+#: The flexion of the touching arm (examples/layered_arm_touching_flexion.toml, :func:`touching_flexion_raw`):
+#: both muscles activated to 1 over the first half of the load, then the forearm turned by 5 degrees; 4 steps.
+TOUCHING_FLEXION = {"angle": 5.0, "steps": 4, "touching": 0.019, "k_contact": 1e11, "activations": (1.0, 1.0),
+                    "sequential": True}
+
+
+def touching_flexion_raw(**kwargs: Any) -> dict[str, Any]:
+    """The layered arm with touching muscles (examples/layered_arm_touching.toml: the bellies share a flat face,
+    no fat between them, penalty k = 1e11) on the flexion's bones: :func:`flexion_raw` with
+    :data:`TOUCHING_FLEXION` (``kwargs`` override it): the activation presses the muscles' shared face together,
+    then the flexion unloads it."""
+    return flexion_raw(True, **{**TOUCHING_FLEXION, **kwargs})
+
+
+def run_touching_flexion(comm: MPI.Comm = MPI.COMM_WORLD, **kwargs: Any) -> ArmResult:
+    """:func:`run_flexion` of :func:`touching_flexion_raw` (``kwargs`` override :data:`TOUCHING_FLEXION`), with the
+    muscles' contact report at rest and after every converged step (ArmResult.history). Collective."""
+    return run_flexion(True, comm=comm, **{**TOUCHING_FLEXION, **kwargs})
 
 
 def _nodes_on(problem: ElasticityProblem, boundary: str) -> tuple[np.ndarray, np.ndarray]:
@@ -250,7 +282,9 @@ def run_flexion(layered: bool, angle: float = 30.0, size: float = 0.015, turn_el
     or the layered arm and measure it (module docstring: the bulge relative to the section's mean displacement;
     ``bone``: the humerus' contact report; ``reactions``: the attached faces'). Collective."""
     config = flexion_config(layered, angle, size, turn_elements, steps, **kwargs)
-    result = _run(config, layered, PAIRS, steps, comm, flexion=True)
+    touching = kwargs.get("touching") is not None
+    result = _run(config, layered, TOUCHING_PAIRS if touching else PAIRS, steps, comm, flexion=True,
+                  track="a_on_b" if touching else None)
     result.angle = float(angle)
     return result
 
