@@ -57,6 +57,7 @@ from model.config.base import (
     validate,
 )
 from model.config.bone import ObstacleField, shape_keys_schema
+from model.config.expressions import compile_expression, uses_load_factor
 from model.config.units import UnitsConfig
 from model.errors import ConfigError
 
@@ -209,10 +210,26 @@ class InflationSection(Section):
         "the thesis' per-node pressure: a node that touches an [[obstacle]] or a [[contact]] keeps the pressure of "
         "the step it first touched at, the others follow the pressure (with target_volume / contact_fraction the "
         "secant and the bisection reach each trial pressure from the last equilibrium below it)", default=False)
+    pressure_weight: str | None = key(
+        "the thesis' painted pressure weight map: an expression of the rest position x[0], x[1], x[2] (m), e.g. "
+        "\"1 + 2 * x[0]\"; every node's pressure is w(X) p (>= 0 at every node, checked on the mesh)",
+        default=None)
     unit_area: Flag = key(
         "the thesis' unit-area nodal pressure force f_i = (p_i / 3) sum_j n_j over the node's triangles (A_j = 1): "
         "the pressure is then a force per triangle, and the load grows with the number of triangles (not "
         "consistent: no mesh convergence)", default=False)
+
+    @model_validator(mode="after")
+    def _weight_expression(self) -> InflationSection:
+        if self.pressure_weight is not None:
+            try:
+                compile_expression(self.pressure_weight)
+            except ValueError as err:
+                fail(str(err), "pressure_weight")
+            if uses_load_factor(self.pressure_weight):
+                fail(f"must not mention t (a map of the rest position; the pressure path scales it), got "
+                     f"{self.pressure_weight!r}", "pressure_weight")
+        return self
 
     @model_validator(mode="after")
     def _one_path(self) -> InflationSection:

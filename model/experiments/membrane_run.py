@@ -49,9 +49,10 @@ import numpy as np
 from mpi4py import MPI
 
 from forms.membrane import membrane_law
+from model.config.expressions import compile_expression
 from model.config.membrane import MUSCLE_FILES, MembraneRunConfig
 from model.domain.distribute import build_domain
-from model.errors import SolveFailed
+from model.errors import ConfigError, SolveFailed
 from model.experiments.membrane_phases import _extrusion, _muscle, _patch
 from model.experiments.membrane_records import _obstacle_name, _obstacle_summary, _step_record, _Writer
 from model.experiments.membrane_surface import _facing_side, _file_bump, _file_surface, _orientation, _surface
@@ -115,9 +116,16 @@ def _run_membrane(config: MembraneRunConfig, out: Path | None, comm: MPI.Comm, s
         data, extrusion = _extrusion(config, law, flat, patch, scale, num_points, comm)
         orientation = triangle_orientation(*comm.bcast((data.points, data.cells) if comm.rank == 0 else None))
     domain = build_domain(comm, data)
-    problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree,
-                              freeze_on_contact=inflation.freeze_on_contact, unit_area=inflation.unit_area,
-                              base_volume=patch.base_volume if patch is not None else 0.0)
+    weight = compile_expression(inflation.pressure_weight) if inflation.pressure_weight is not None else None
+    try:
+        problem = MembraneProblem(domain, law, orientation, m.border, quadrature_degree=m.quadrature_degree,
+                                  freeze_on_contact=inflation.freeze_on_contact, unit_area=inflation.unit_area,
+                                  base_volume=patch.base_volume if patch is not None else 0.0,
+                                  pressure_weight=weight)
+    except ValueError as err:
+        if weight is None:
+            raise
+        raise ConfigError(f"inflation.pressure_weight: {err}") from None
     rest_volume = problem.volume()
     contacts = [ObstacleContact(problem, spec.obstacle, spec.penalty, spec.inside, _obstacle_name(spec, i),
                                 spec.augmented) for i, spec in enumerate(config.obstacles)]

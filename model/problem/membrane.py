@@ -50,6 +50,10 @@ i.e. f_i = (p_i / 3) sum_{j in N_i} n_j: p is then a force per triangle, not a p
 consistent: its total is p sum_T n_T, the number of triangles times p instead of p times the area, so it grows
 like 1/h^2 under refinement (no mesh convergence) and on a graded mesh loads each region by its number of
 triangles, not by its area. Implies the per-node pressure (set_pressure, freeze work the same).
+
+A painted pressure weight map (``pressure_weight``, a function of the rest position; the thesis, ch. 3.3.3:
+artists paint "a spatial weight map to create variations in the inflating behaviour"): p_i = w(X_i) p at every
+node not frozen, w >= 0, through the same per-node residual (w = 1 is the uniform pressure).
 """
 
 from __future__ import annotations
@@ -144,11 +148,14 @@ class MembraneProblem:
     change): for a patch clamped on a rim that is not in a plane through the origin, V_b = V(X_b) of the patch at
     rest (the same cone formula) makes V(x) - V_b the volume between x and the rest patch (the two close on the
     clamped rim: the divergence theorem; model.experiments.membrane's muscle), independent of the origin.
+    ``pressure_weight``: w(X) for the rest positions X (3, n) -> (n,), the painted weight map (module docstring;
+    ``weight``, a float per owned node); ValueError unless finite and >= 0 at every node.
     """
 
     def __init__(self, domain: Domain, law: MembraneLaw, orientation: Orientation,
                  fixed: dict[str, tuple[int, ...]] | None = None, quadrature_degree: int = 2,
-                 freeze_on_contact: bool = False, unit_area: bool = False, base_volume: float = 0.0) -> None:
+                 freeze_on_contact: bool = False, unit_area: bool = False, base_volume: float = 0.0,
+                 pressure_weight: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         msh = domain.mesh
         if msh.topology.dim != 2 or msh.geometry.dim != 3:
             raise ValueError(f"membrane: needs a surface mesh (tdim 2, gdim 3), got tdim {msh.topology.dim}, "
@@ -171,7 +178,7 @@ class MembraneProblem:
         self.nodal_pressure: fem.Function | None = None
         self._load: ufl.Form | None = None
         self.freeze_on_contact, self.unit_area = bool(freeze_on_contact), bool(unit_area)
-        if freeze_on_contact or unit_area:
+        if freeze_on_contact or unit_area or pressure_weight is not None:
             # the pressure per node: a scalar P1 Function, the dof of each displacement block from the collapsed
             # first component (as the contact multipliers, model.problem.membrane_contact)
             Q, to_v = self.V.sub(0).collapse()
@@ -180,6 +187,11 @@ class MembraneProblem:
             q_of_block[np.asarray(to_v, dtype=np.int64) // 3] = np.arange(len(to_v))
             self._q = q_of_block[: self.V.dofmap.index_map.size_local]
             self.frozen = np.zeros(len(self._q), dtype=bool)
+            self.weight = np.ones(len(self._q))
+            if pressure_weight is not None:
+                X = Q.tabulate_dof_coordinates()[self._q].T
+                self.weight = np.asarray(pressure_weight(X), dtype=np.float64).reshape(-1)
+                _check_weight(msh.comm, X, self.weight)
             area_vector = ufl.cross(self.F[:, 0], self.F[:, 1])  # n da / dA
             v = ufl.TestFunction(self.V)
             if unit_area:  # (p_i / 3) sum_j n_j: the vertex rule over each triangle divided by its rest area
@@ -223,7 +235,7 @@ class MembraneProblem:
         """p = ``value``: the constant, and with ``freeze_on_contact`` every node not frozen (ghosts updated)."""
         self.pressure.value = value
         if self.nodal_pressure is not None:
-            self.nodal_pressure.x.array[self._q[~self.frozen]] = value
+            self.nodal_pressure.x.array[self._q[~self.frozen]] = value * self.weight[~self.frozen]
             self.nodal_pressure.x.scatter_forward()
 
     def freeze(self, nodes: np.ndarray) -> int:
@@ -293,6 +305,18 @@ class MembraneProblem:
         n = self.V.dofmap.index_map.size_local
         local = self.u.x.array[: n * bs].reshape(-1, bs)[:, k]
         return float(self.domain.mesh.comm.allreduce(local.max() if len(local) else -np.inf, op=MPI.MAX))
+
+
+def _check_weight(comm: MPI.Comm, X: np.ndarray, weight: np.ndarray) -> None:
+    """ValueError (the same on every rank) unless the weight is finite and >= 0 at every node: the first bad
+    node's rest position and value."""
+    bad = ~np.isfinite(weight) | (weight < 0.0)
+    local = (float(weight[bad][0]), *map(float, X[:, bad][:, 0])) if bad.any() else None
+    found = [b for b in comm.allgather(local) if b is not None]
+    if found:
+        w, *x = found[0]
+        raise ValueError(f"must be finite and >= 0 at every node, got {w:.6g} at ({x[0]:.6g}, {x[1]:.6g}, "
+                         f"{x[2]:.6g})")
 
 
 def balloon_pressure(law: MembraneLaw, radius: float, stretch: float | np.ndarray) -> np.ndarray:
