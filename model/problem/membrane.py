@@ -232,7 +232,8 @@ class MembraneProblem:
         return residual if self._load is None else residual - self._load
 
     def set_pressure(self, value: float) -> None:
-        """p = ``value``: the constant, and with ``freeze_on_contact`` every node not frozen (ghosts updated)."""
+        """p = ``value``: the constant, and with a per-node pressure (``freeze_on_contact``, ``unit_area``,
+        ``pressure_weight``) w_i p at every node not frozen (w_i = 1 without a weight map; ghosts updated)."""
         self.pressure.value = value
         if self.nodal_pressure is not None:
             self.nodal_pressure.x.array[self._q[~self.frozen]] = value * self.weight[~self.frozen]
@@ -247,8 +248,8 @@ class MembraneProblem:
         return self.frozen_count()
 
     def state(self) -> tuple[np.ndarray, ...]:
-        """A copy of what an equilibrium leaves behind: u's values and, with ``freeze_on_contact``, the frozen
-        nodes and p_h's values (:meth:`restore` puts it back; an inflation that goes back to an earlier state)."""
+        """A copy of what an equilibrium leaves behind: u's values and, with a per-node pressure, the frozen nodes
+        and p_h's values (:meth:`restore` puts it back; an inflation that goes back to an earlier state)."""
         if self.nodal_pressure is None:
             return (self.u.x.array.copy(),)
         return self.u.x.array.copy(), self.frozen.copy(), self.nodal_pressure.x.array.copy()
