@@ -23,7 +23,7 @@ from conftest import EXAMPLES
 from mpi4py import MPI
 
 from forms.motions import HingeMotion
-from model.config import load, parse
+from model.config import RunConfig, load, parse
 from model.experiments.layered_arm import (
     BONE_GAP,
     HUMERUS_RADIUS,
@@ -45,12 +45,16 @@ STEPS = 4
 MESH = {"size": 0.015, "turn_elements": 8}
 
 
-def test_the_example_is_the_experiments_layered_run() -> None:
-    """examples/layered_arm_flexion.toml is the layered run of these tests, flexion_config(layered=True)."""
-    shipped = load(EXAMPLES / "layered_arm_flexion.toml")
-    built = flexion_config(True, ANGLE, steps=STEPS, **MESH)
+def _assert_same_run(example: str, built: RunConfig) -> None:
+    """The shipped example's configuration is ``built``, key by key."""
+    shipped = load(EXAMPLES / example)
     for key in ("mesh", "discretization", "materials", "boundaries", "bones", "contacts", "loading", "petsc_options"):
         assert getattr(shipped, key) == getattr(built, key), key
+
+
+def test_the_example_is_the_experiments_layered_run() -> None:
+    """examples/layered_arm_flexion.toml is the layered run of these tests, flexion_config(layered=True)."""
+    _assert_same_run("layered_arm_flexion.toml", flexion_config(True, ANGLE, steps=STEPS, **MESH))
 
 
 @pytest.fixture(scope="module")
@@ -144,10 +148,7 @@ def test_layered_against_conforming(runs: tuple[ArmResult, ArmResult]) -> None:
 
 def test_the_touching_example_is_the_experiments_run() -> None:
     """examples/layered_arm_touching_flexion.toml is run_touching_flexion's configuration."""
-    shipped = load(EXAMPLES / "layered_arm_touching_flexion.toml")
-    built = parse(touching_flexion_raw())
-    for key in ("mesh", "discretization", "materials", "boundaries", "bones", "contacts", "loading", "petsc_options"):
-        assert getattr(shipped, key) == getattr(built, key), key
+    _assert_same_run("layered_arm_touching_flexion.toml", parse(touching_flexion_raw()))
 
 
 @pytest.fixture(scope="module")
@@ -160,8 +161,8 @@ def test_the_activation_presses_the_muscles_and_the_flexion_unloads_them(touchin
     over its first half, the forearm turned by 5 degrees over the second (measured, Debian 12: 5.11, 10.30, 4.29,
     0.022 N on 34, 34, 22, 1 nodes): the force rises with the activation (about linearly), and the flexion takes it
     back, first by more than 40 %, then to below 2 % (Debian 13's mesh: 5.07, 10.21, 4.23, 0.094 N); the force
-    pushes a along -x, the face's normal; the faces
-    never enter each other beyond the penalty's p / k (3.1 um at 10 N)."""
+    pushes a along -x, the face's normal; the faces never enter each other beyond the penalty's p / k (3.1 um at
+    10 N)."""
     assert touching.completed and touching.angle == TOUCHING_FLEXION["angle"]
     history = touching.history
     assert [h["load_factor"] for h in history] == pytest.approx([0.0, 0.25, 0.5, 0.75, 1.0])

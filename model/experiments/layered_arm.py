@@ -73,6 +73,11 @@ FOREARM_RADIUS = 0.008
 RADIUS = 0.03
 
 
+def _pairs(touching: float | None) -> tuple[tuple[str, str, str, str], ...]:
+    """The layered arm's pairs: :data:`PAIRS`, or :data:`TOUCHING_PAIRS` with touching muscles (a spacing)."""
+    return PAIRS if touching is None else TOUCHING_PAIRS
+
+
 def _muscle(region: str, tendon: str, origin: str, insertion: str, activation: float) -> list[dict[str, Any]]:
     fibres = {"type": "laplace", "origin": origin, "insertion": insertion, "regions": [region, tendon]}
     return [{"region": region, "law": "muscle", "isotropic": "stvk", "E": 9.0e6, "nu": 0.45, "fibres": fibres,
@@ -122,7 +127,7 @@ def arm_raw(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: 
         raw["contact"] = [{"surface": slave, "master": master, "method": "penalty",
                            **({"penalty": k_contact, **augment} if kind == "contact"
                               else {"penalty": k_sliding, "sliding": True})}
-                          for _, slave, master, kind in (PAIRS if touching is None else TOUCHING_PAIRS)]
+                          for _, slave, master, kind in _pairs(touching)]
         # the lagged pairing converges linearly (model.problem.body_contact: the nodal normals)
         raw["solver"] = {"petsc_options": {"snes_max_it": 80, "snes_rtol": 1e-8}}
     return raw
@@ -273,7 +278,7 @@ def run_arm(layered: bool, size: float = 0.008, turn_elements: int = 16, steps: 
     docstring; ``activations``, ``touching`` and ``augmented``: :func:`arm_config`). Collective."""
     config = arm_config(layered, size, turn_elements, steps, k_sliding, k_contact, activations=activations,
                         touching=touching, augmented=augmented)
-    return _run(config, layered, PAIRS if touching is None else TOUCHING_PAIRS, steps, comm)
+    return _run(config, layered, _pairs(touching), steps, comm)
 
 
 def run_flexion(layered: bool, angle: float = 30.0, size: float = 0.015, turn_elements: int = 8, steps: int = 3,
@@ -282,9 +287,9 @@ def run_flexion(layered: bool, angle: float = 30.0, size: float = 0.015, turn_el
     or the layered arm and measure it (module docstring: the bulge relative to the section's mean displacement;
     ``bone``: the humerus' contact report; ``reactions``: the attached faces'). Collective."""
     config = flexion_config(layered, angle, size, turn_elements, steps, **kwargs)
-    touching = kwargs.get("touching") is not None
-    result = _run(config, layered, TOUCHING_PAIRS if touching else PAIRS, steps, comm, flexion=True,
-                  track="a_on_b" if touching else None)
+    touching = kwargs.get("touching")
+    result = _run(config, layered, _pairs(touching), steps, comm, flexion=True,
+                  track="a_on_b" if touching is not None else None)
     result.angle = float(angle)
     return result
 
