@@ -129,6 +129,7 @@ def _read_isolated(path: Path, parameters: Mapping[str, float]) -> MeshData:
         with np.load(out) as saved:
             return MeshData(points=saved["points"], cells=saved["cells"], cell_tags=saved["cell_tags"],
                             facets=saved["facets"], facet_tags=saved["facet_tags"],
+                            nodes=saved["nodes"] if "nodes" in saved.files else None,
                             **json.loads(str(saved["names"])))
 
 
@@ -141,8 +142,9 @@ def _main(argv: list[str]) -> int:
         print(f"ValueError: {' '.join(str(err).split())}", file=sys.stderr)
         return 1
     names = json.dumps({"region_names": mesh.region_names, "boundary_names": mesh.boundary_names})
+    curved = {} if mesh.nodes is None else {"nodes": mesh.nodes}  # 10-node tetrahedra keep their edge nodes
     np.savez(out, points=mesh.points, cells=mesh.cells, cell_tags=mesh.cell_tags, facets=mesh.facets,
-             facet_tags=mesh.facet_tags, names=np.array(names))
+             facet_tags=mesh.facet_tags, names=np.array(names), **curved)
     return 0
 
 

@@ -64,7 +64,7 @@ from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_ch
 from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.measurements import Volumes, reactions
-from model.solvers import linear
+from model.solvers import linear, stability
 from model.solvers.loadstepping import continuation, step_loads
 from model.solvers.newton import NewtonSolver, free_garbage
 
@@ -524,6 +524,45 @@ def _earlier_summary(directory: Path, comm: MPI.Comm) -> dict[str, Any]:
     return summary  # type: ignore[return-value]
 
 
+def _check_control(config: RunConfig, setup: Setup, restart: bool) -> None:
+    """ConfigError (before any solve) for [loading] control = "arc_length" / "volume" where it cannot drive the run:
+    it needs Newton on a quasi-static run without contact, load hooks (activation, bones) or Dirichlet values that
+    move with the load, a restart-free run, and for "volume" a pressure boundary and a volume_ratio."""
+    loading = config.loading
+    if loading.control == "load":
+        return
+    key = "loading.control"
+    why = None
+    if config.dynamics is not None and config.dynamics.is_dynamic:
+        why = "a dynamic run is driven by time"
+    elif config.solver.method != "newton":
+        why = f"it needs solver.method = \"newton\", not {config.solver.method!r}"
+    elif setup.contacts or config.contacts:
+        why = "contact is not supported with path following"
+    elif restart:
+        why = "--restart continues load-controlled runs only"
+    elif setup.problem.load_hooks:
+        why = "the load factor also drives an activation, bone motion or targets (not a load vector)"
+    else:
+        comm = setup.domain.mesh.comm
+        moving = any(f is not None or np.any(ref != 0.0) for entry in setup.problem.dirichlet
+                     for ref, f in zip(entry.reference, entry.of_load_factor))
+        if comm.allreduce(moving, op=MPI.LOR):
+            why = "a displacement condition moves with the load factor (path following drives forces only)"
+    if why is not None:
+        raise ConfigError(f"{key}: {loading.control!r}: {why}")
+    if loading.control == "volume":
+        pressures = [b.on for b in config.boundaries if b.type == "pressure"]
+        if loading.volume_boundary is None:
+            raise ConfigError(f"loading.volume_boundary: control = \"volume\" needs the pressure boundary whose cavity "
+                              f"volume is prescribed (one of {pressures or 'none: there is no pressure boundary'})")
+        if loading.volume_boundary not in pressures:
+            raise ConfigError(f"loading.volume_boundary: {loading.volume_boundary!r} carries no pressure (pressure "
+                              f"boundaries: {', '.join(map(repr, pressures)) or 'none'})")
+        if loading.volume_ratio is None:
+            raise ConfigError("loading.volume_ratio: control = \"volume\" needs the final volume over the rest volume")
+
+
 def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD, *,
         objective: bool | None = None, restart: bool = False) -> dict[str, Any]:
     """Run a configuration; returns the summary (also written to OUT/summary.json).
@@ -548,6 +587,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     if comm.rank == 0:
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
+    _check_control(config, setup, restart)  # arc length / volume control: what they cannot drive, before any solve
     earlier = _earlier_summary(directory, comm) if restart else None
     if earlier is None:
         remove_earlier_run(directory, comm)  # before any solve and before anything is written there
@@ -657,6 +697,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             step["activation"] = setup.activation.values(t)
         if not r.converged and getattr(r, "largest_residual", None):
             step["largest_residual"] = r.largest_residual
+        if getattr(r, "admissibility", None):  # min det F over the material points, per region, and where
+            step.update(r.admissibility)
         if r.converged:
             step.update(problem.energies())
             if dynamics is not None:
@@ -717,13 +759,29 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             solver, dynamics, spec.end_time, spec.dt,
             lambda rec: record_step(rec.time, rec.result, {"time": rec.time, "dt": rec.dt}, rec.next_increment),
             max_cutbacks=config.loading.max_cutbacks, growth=config.loading.growth, increment=increment)
+    elif config.loading.control != "load":
+        from model.solvers.pathfollowing import PathFollower, follow_path
+
+        loading = config.loading
+        problem.set_load_factor(0.0)
+        follower = PathFollower(solver, loading.control, boundary=loading.volume_boundary,
+                                origin=list(loading.volume_origin), ratio=loading.volume_ratio)
+        summary["control"] = {"type": loading.control, **({"boundary": loading.volume_boundary,
+                                                             "rest_volume": follower.initial_volume,
+                                                             "volume_ratio": loading.volume_ratio}
+                                                            if loading.control == "volume" else {})}
+        save()
+        stepping = lambda: follow_path(  # noqa: E731
+            follower, loading.steps, loading.max_steps, loading.max_cutbacks, loading.growth,
+            lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds, **rec.control},
+                                    rec.next_increment))
     else:
         problem.set_load_factor(0.0 if checkpoint is None else meta["load_factor"])
         save()
         stepping = lambda: step_loads(  # noqa: E731
             solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth,
             lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds}, rec.next_increment),
-            increment=increment)
+            increment=increment, diagnose=lambda state: stability.diagnose(newton_of(solver), state))
     if checkpoint is not None:
         problem.solution.x.array[:] = restored["solution"].x.array
         for i, c in enumerate(setup.contacts):
@@ -752,6 +810,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     summary["status"] = "completed" if ok else "failed"
     if not ok:
         summary["failure"] = ok.reason
+    if ok.stability is not None:  # the tangent's inertia and stiffness along the load where the stepping gave up
+        summary["stability"] = ok.stability
     unused = getattr(solver, "unused_options", [])
     if unused:
         summary["unused_petsc_options"] = unused

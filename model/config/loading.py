@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import Field
 
-from model.config.base import Integer, Number, Section, key
+from model.config.base import Integer, Number, Point, Section, Text, key
 
 
 class LoadingConfig(Section):
     """[loading]: the load factor t goes from 0 to 1 in ``steps`` equal steps; a step that fails is halved (at
-    most ``max_cutbacks`` times in a row) and the step grows again by ``growth`` after each success."""
+    most ``max_cutbacks`` times in a row) and the step grows again by ``growth`` after each success.
+
+    ``control`` "arc_length" or "volume" makes the load factor an unknown (model.solvers.pathfollowing): arc
+    length follows the equilibrium path through load maxima until the load factor reaches 1 (or ``max_steps``);
+    volume control prescribes the volume of the cavity of the pressure boundary ``volume_boundary``, from its
+    rest volume to ``volume_ratio`` times it in ``steps`` steps, and the pressure is the unknown."""
 
     steps: Annotated[Integer, Field(ge=1)] = key("number of equal load steps from t = 0 to t = 1", default=1)
     max_cutbacks: Annotated[Integer, Field(ge=0)] = key(
@@ -19,3 +24,17 @@ class LoadingConfig(Section):
     growth: Annotated[Number, Field(ge=1)] = key(
         "factor by which the step grows after a converged cut-back step (up to the nominal step)", "dimensionless",
         default=1.5)
+    control: Literal["load", "arc_length", "volume"] = key(
+        "what drives the run: \"load\" (the load factor is prescribed: 0 to 1 in steps), \"arc_length\" (the load "
+        "factor is an unknown, the path is followed past load maxima with Crisfield's arc length until it reaches "
+        "1), \"volume\" (the cavity volume of volume_boundary is prescribed, its pressure is the unknown)",
+        default="load")
+    max_steps: Annotated[Integer, Field(ge=1, le=100_000)] = key(
+        "control = \"arc_length\": the most steps the path may take before it stops", default=200)
+    volume_boundary: Text | None = key(
+        "control = \"volume\": the boundary with the pressure whose cavity volume is prescribed", default=None)
+    volume_ratio: Annotated[Number, Field(gt=0)] | None = key(
+        "control = \"volume\": the final cavity volume over the rest volume", "dimensionless", default=None)
+    volume_origin: Point = key(
+        "control = \"volume\": a point on the planes that close the cavity (symmetry planes, a base plane): "
+        "V = -(1/3) int (x - origin) . n da over volume_boundary", "length", default=(0.0, 0.0, 0.0))

@@ -15,6 +15,9 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from model.solvers.newton import NewtonSolver, SolveResult
 
@@ -28,6 +31,8 @@ class Outcome:
 
     completed: bool
     reason: str = ""
+    #: the stability report of a failed run (model.solvers.stability.diagnose), when one was made
+    stability: dict[str, Any] | None = None
 
     def __bool__(self) -> bool:
         return self.completed
@@ -71,12 +76,16 @@ class StepRecord:
 
 def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: int, max_cutbacks: int = 8,
                  growth: float = 1.5, on_step: Callable[[StepRecord], None] | None = None, start: float = 0.0,
-                 what: str = "load step", step_key: str = "loading.steps", increment: float | None = None) -> Outcome:
+                 what: str = "load step", step_key: str = "loading.steps", increment: float | None = None,
+                 diagnose: Callable[[np.ndarray | None], dict[str, Any] | None] | None = None) -> Outcome:
     """Drive a parameter s from ``start`` to 1 in increments of 1/steps, ``apply(s)`` setting it on the problem
     before each solve; a failed solve restores the last converged state and halves the increment that failed,
     a converged one grows the increment by ``growth`` (up to 1/steps). A true Outcome when s got to 1, else
     one whose ``reason`` says why it gave up (give_up_reason). ``increment``: the first step's (a restart
-    continues with the cut-back state it saved; default 1/steps)."""
+    continues with the cut-back state it saved; default 1/steps). ``diagnose(failed_state)``, called when it
+    gives up (at the last converged state, with the last failed iterate's solution array): a stability report
+    (model.solvers.stability.diagnose) whose "message", when the structure is unstable, replaces the cut-back
+    advice, which cannot help there."""
     problem = solver.problem
     nominal = 1.0 / steps
     increment = nominal if increment is None else float(increment)
@@ -98,6 +107,7 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
             cutbacks = 0
             increment = min(increment * growth, nominal)
             continue
+        failed_state = problem.solution.x.array.copy() if diagnose is not None else None
         problem.solution.x.array[:] = saved
         apply(current)
         cutbacks += 1
@@ -106,9 +116,13 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
                                 increment, nominal, max_cutbacks, step_key)
         rank0 = _rank0(problem)
         if reason is not None:
+            report = diagnose(failed_state) if diagnose is not None else None
+            if report is not None and report.get("unstable"):
+                reason = (f"{what} to {target:.6g} failed (last SNES reason {result.reason_name}) after {cutbacks} "
+                          f"cut-backs; stopped at {current:.6g}: {report['message']}")
             if rank0:
                 log.error("giving up: %s", reason)
-            return Outcome(False, reason)
+            return Outcome(False, reason, report)
         if rank0:
             log.warning("SNES failed at %s %.6g (%s%s); cutting the increment back to %.4g",
                         what.removesuffix(" step"), target, result.reason_name,
@@ -117,10 +131,11 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
 
 
 def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: float = 1.5,
-               on_step: Callable[[StepRecord], None] | None = None, increment: float | None = None) -> Outcome:
+               on_step: Callable[[StepRecord], None] | None = None, increment: float | None = None,
+               diagnose: Callable[[np.ndarray | None], dict[str, Any] | None] | None = None) -> Outcome:
     """Drive the load factor of solver.problem from its current value to 1 (continuation with
     apply = problem.set_load_factor, first increment ``increment``); a true Outcome when it got there, else one
     whose ``reason`` says why it gave up."""
     problem = solver.problem
     return continuation(solver, problem.set_load_factor, steps, max_cutbacks, growth, on_step,
-                        start=float(problem.time), increment=increment)
+                        start=float(problem.time), increment=increment, diagnose=diagnose)

@@ -56,6 +56,7 @@ from petsc4py import PETSc
 
 from model import compat
 from model.problem import ElasticityProblem
+from model.problem.admissibility import Admissibility
 from model.solvers import linear
 
 log = logging.getLogger(__name__)
@@ -114,6 +115,21 @@ def _petsc_library() -> ctypes.CDLL | None:
 
 
 _PETSC = _petsc_library()
+def set_domain_error(snes: PETSc.SNES) -> bool:
+    """SNESSetFunctionDomainError: the state of the residual being evaluated is outside the problem's domain (a
+    folded cell); the line search backs off or the solve ends with DIVERGED_FUNCTION_DOMAIN. Called on every rank
+    (the caller's test is collective). petsc4py 3.18 lacks it: through the loaded library. False where neither
+    is there (the caller then fills the residual with NaN, which fails the line search as well)."""
+    method = getattr(snes, "setFunctionDomainError", None)
+    if method is not None:
+        method()
+    elif _PETSC is not None:
+        _PETSC.SNESSetFunctionDomainError(ctypes.c_void_p(snes.handle))
+    else:
+        return False
+    return True
+
+
 #: option families PETSc reads only during the first solve, or at its end (viewers, reasons)
 _READ_LATER = ("mat_", "mg_", "fieldsplit_", "sub_", "pc_gamg_", "pc_mg_", "pc_factor_")
 _READ_LATER_WORDS = ("view", "converged_reason", "monitor")
@@ -148,6 +164,9 @@ class SolveResult:
     #: 'belly', on boundary 'cap'"), and as data (ResidualLocation.as_dict); empty / None otherwise
     where: str = ""
     largest_residual: dict[str, Any] | None = None
+    #: the state's det F report (Admissibility.report: min_det_F, per region, where) and how many Newton directions
+    #: the admissibility limit shortened ("limited_steps")
+    admissibility: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -344,6 +363,15 @@ class NewtonSolver:
                               f"solver it configures (misspelt, or for another solver type)")
         self.unused_options: list[str] = []
         self._checked = False
+        #: det F > 0 at every material point (model.problem.admissibility): a trial state that folds a cell is a
+        #: domain error for SNES, and every Newton direction is shortened (halved) until it keeps det F > 0
+        self.admissibility = Admissibility(problem)
+        #: how often the admissibility limit shortened a Newton direction in the last solve
+        self.limited_steps = 0
+        #: min det F at the last residual evaluation (collective)
+        self.last_min_det_F = math.inf
+        if self.snes.getType() in LINE_SEARCH_SNES:
+            self.snes.setLineSearchPreCheck(self._precheck)
         # variable bounds (SNES VI solvers, e.g. contact): bounds(xl, xu) fills them before every solve
         self.bounds = bounds
         self.xl = self.x.duplicate() if bounds is not None else None
@@ -385,6 +413,8 @@ class NewtonSolver:
         # of the last Jacobian evaluation (of the initial state at the first residual of a solve):
         # the same linearisation as the Newton matrix. It vanishes once x satisfies the conditions.
         self._copy_in(x)
+        self.last_min_det_F = self.admissibility.minimum()
+        folded = not self.last_min_det_F > 0.0  # folded (or NaN): the line search backs off, or the solve fails
         out = b
         if self.nested is not None:  # the mixed space's layout here, the block layout for SNES at the end
             x, b = self._mixed_x, self._mixed_b
@@ -399,11 +429,25 @@ class NewtonSolver:
         compat.set_bc(b, bcs, x, -1.0)
         if self.nested is not None:
             self.nested.to_block(b, out)
+        if folded and not set_domain_error(snes):
+            out.set(math.nan)
 
     def _objective(self, snes: PETSc.SNES, x: PETSc.Vec) -> float:
         """Pi(x), the total potential (ElasticityProblem.total_potential), the same on every rank."""
         self._copy_in(x)
         return self.problem.total_potential()
+
+    def _precheck(self, x: PETSc.Vec, y: PETSc.Vec, *args: Any) -> bool:
+        """SNES line-search pre-check: shorten the Newton direction y (the update is x - y) to y 2^-k, the longest
+        that keeps det F > 0 at every material point (Admissibility.step_limit). Returns whether y changed."""
+        self._copy_in(x)
+        s = self.admissibility.step_limit(self._mixed(y))
+        if s >= 1.0 or s == 0.0:  # s == 0: no halving helps; the residual's domain error fails the solve
+            return False
+        y.scale(s)
+        self.limited_steps += 1
+        log.debug("Newton direction shortened to %.3g of its length to keep det F > 0", s)
+        return True
 
     @property
     def line_search(self) -> dict[str, str]:
@@ -503,6 +547,7 @@ class NewtonSolver:
             self.snes.setVariableBounds(self.xl, self.xu)
         extra = dirichlet_linear = 0
         self.linear_monitor.reset()
+        self.limited_steps = 0
         tolerances = self.snes.getTolerances()
         rtol, atol, _, max_it = tolerances
         on_pi = self.objective and self.line_search["merit"] == "total_potential"
@@ -533,6 +578,12 @@ class NewtonSolver:
                 log.warning("PETSc did not use the option %s (solver.petsc_options)", key)
         self._copy_in(self.x)
         reason = self.snes.getConvergedReason()
+        admissibility = {**self.admissibility.report(), "limited_steps": self.limited_steps}
+        if reason > 0 and not (isinstance(admissibility["min_det_F"], float) and admissibility["min_det_F"] > 0):
+            # never accepted, whatever the residual says (a state SNES took without evaluating its residual)
+            log.warning("a converged state has det F = %s at %s: refused", admissibility["min_det_F"],
+                        admissibility["min_det_F_point"])
+            reason = PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN
         where = self.residual_location() if reason <= 0 else None
         return SolveResult(
             converged=reason > 0,
@@ -543,6 +594,7 @@ class NewtonSolver:
             residual_norm=float(self.snes.getFunctionNorm()),
             where=str(where) if where is not None else "",
             largest_residual=where.as_dict() if where is not None else None,
+            admissibility=admissibility,
         )
 
     def residual_location(self) -> ResidualLocation | None:
