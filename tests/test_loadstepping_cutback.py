@@ -59,3 +59,29 @@ def test_give_up_reasons_name_the_keys() -> None:
     assert not outcome
     assert "the next increment 0.0187 would fall below the smallest allowed, 0.2 / 2^3 = 0.025 (loading.steps, " \
            "loading.max_cutbacks); stopped at 0.3" in outcome.reason, outcome.reason
+
+
+@dataclass
+class FailingSolver(FakeSolver):
+    """Fails above ``limit`` with a given SNES reason and det F report."""
+
+    reason_name: str = "DIVERGED_LINEAR_SOLVE"
+    admissibility: dict | None = None
+
+    def solve(self) -> SolveResult:
+        result = super().solve()
+        if result.converged:
+            return result
+        return SolveResult(False, -3, self.reason_name, 3, 3, 1.0, admissibility=self.admissibility)
+
+
+def test_give_up_messages_match_the_cause() -> None:
+    """A linear solver failure is not answered with more cut-backs; folded trial states are located."""
+    outcome = step_loads(FailingSolver(FakeProblem(), limit=0.3), steps=5, max_cutbacks=3)
+    assert "the linear solver failed in every attempt" in outcome.reason
+    assert "raise loading.max_cutbacks" not in outcome.reason
+    fold = {"min_det_F": -0.25, "min_det_F_point": [0.5, 0.25, 1.0]}
+    outcome = step_loads(FailingSolver(FakeProblem(), limit=0.3, reason_name="DIVERGED_FUNCTION_DOMAIN",
+                                       admissibility={"min_det_F": 0.4, "folded_trial": fold}), steps=5, max_cutbacks=3)
+    assert "raise loading.max_cutbacks" in outcome.reason  # smaller steps may help here
+    assert "every attempt folded cells (det F = -0.25 near (0.5, 0.25, 1) in its last trial state)" in outcome.reason

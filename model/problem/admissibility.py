@@ -35,12 +35,10 @@ from model import compat
 #: a Newton direction is halved at most this many times to keep det F > 0 (then it is left to the residual's
 #: domain error: the solve fails and the load step is cut back)
 MAX_HALVINGS = 12
-#: the reference tetrahedron's vertices
-_VERTICES = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-
-
 def _det(F: np.ndarray) -> np.ndarray:
-    """det of a stack (..., 3, 3)."""
+    """det of a stack (..., d, d) (closed form for d = 3)."""
+    if F.shape[-1] != 3:
+        return np.linalg.det(F) if F.size else np.empty(F.shape[:-2])
     return (F[..., 0, 0] * (F[..., 1, 1] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 1])
             - F[..., 0, 1] * (F[..., 1, 0] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 0])
             + F[..., 0, 2] * (F[..., 1, 0] * F[..., 2, 1] - F[..., 1, 1] * F[..., 2, 0]))
@@ -56,8 +54,10 @@ class Admissibility:
         self.mesh = msh
         self.comm = msh.comm
         points = compat.quadrature_points(msh, problem.energy_quadrature_degree)
-        if problem.degree >= 2:
-            points = np.vstack([points, _VERTICES])
+        tdim = msh.topology.dim
+        self.dim = tdim
+        if problem.degree >= 2:  # the reference simplex's vertices
+            points = np.vstack([points, np.vstack([np.zeros(tdim), np.eye(tdim)])])
         self.num_points = len(points)
         self._F = fem.Expression(problem.F, points)
         #: a work function in the solution's space: the Newton direction for step_limit
@@ -74,14 +74,15 @@ class Admissibility:
         self.cells = self.cells.astype(np.int32)
         #: per region: the positions of its cells in self.cells
         self.region_index = {r: np.searchsorted(self.cells, c) for r, c in per_region.items()}
-        geo = compat.geometry_dofs(msh)[self.cells, :4]
+        geo = compat.geometry_dofs(msh)[self.cells, : tdim + 1]
         self.centroids = msh.geometry.x[geo].mean(axis=1) if len(self.cells) else np.empty((0, 3))
 
     def _gradients(self) -> np.ndarray:
         """F at the checked points of the local cells: (cells, points, 3, 3)."""
+        d = self.dim
         if not len(self.cells):
-            return np.empty((0, self.num_points, 3, 3))
-        return compat.evaluate(self._F, self.mesh, self.cells).reshape(len(self.cells), self.num_points, 3, 3)
+            return np.empty((0, self.num_points, d, d))
+        return compat.evaluate(self._F, self.mesh, self.cells).reshape(len(self.cells), self.num_points, d, d)
 
     def cell_minima(self) -> np.ndarray:
         """J_min of each local material cell (NaN -> -inf), from the current solution."""
@@ -109,7 +110,7 @@ class Admissibility:
         local = (float(minima.min()), *self.centroids[int(np.argmin(minima))]) if minima.size else (math.inf,) * 4
         worst = min(self.comm.allgather(local))
         return {"min_det_F": _finite(worst[0]), "min_det_F_regions": regions,
-                "min_det_F_point": [float(c) for c in worst[1:]] if math.isfinite(worst[1]) else None}
+                "min_det_F_point": [float(c) for c in worst[1:]] if worst[0] != math.inf else None}
 
     def step_limit(self, direction: Any) -> float:
         """The largest s = 2^-k (k <= MAX_HALVINGS) with det(F - s grad y) > 0 at every checked point, where y

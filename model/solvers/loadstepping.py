@@ -59,6 +59,30 @@ def give_up_reason(what: str, target: float, current: float, reason_name: str, f
     return None
 
 
+#: what a failure of this kind says, and what can help, by SNES reason (the cut-back advice of give_up_reason
+#: follows it where smaller increments can help; a linear solver failure replaces it)
+LINEAR_ADVICE = ("the linear solver failed in every attempt, and smaller load steps rarely help: with [solver] "
+                 "linear = \"iterative\" try \"direct\" (MUMPS); with MUMPS the Newton matrix is singular (a rigid "
+                 "motion that nothing holds, a zero modulus) or the factorisation ran out of memory")
+
+
+def cause_of(result: SolveResult) -> tuple[str, bool]:
+    """(what the last failed solve says about the cause, whether more cut-backs can help) for the give-up message:
+    a linear solver failure, folded cells (with min det F and where), a NaN residual (with where it is largest)."""
+    name = result.reason_name
+    if name == "DIVERGED_LINEAR_SOLVE":
+        return LINEAR_ADVICE, False
+    fold = (result.admissibility or {}).get("folded_trial")
+    if name == "DIVERGED_FUNCTION_DOMAIN" and fold:
+        point = fold.get("min_det_F_point")
+        where = f" near ({', '.join(f'{c:.4g}' for c in point)})" if point else ""
+        return (f"every attempt folded cells (det F = {fold.get('min_det_F')}{where} in its last trial state): "
+                "a finer mesh there or smaller steps may help, a load past what the body can carry will not"), True
+    if name == "DIVERGED_FNORM_NAN":
+        return f"the residual became NaN ({result.where or 'a law evaluated outside its domain'})", True
+    return "", True
+
+
 def _rank0(problem: object) -> bool:
     """Whether this process logs for the problem (rank 0 of its mesh's communicator; a problem without a mesh:
     always)."""
@@ -120,6 +144,13 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
             if report is not None and report.get("unstable"):
                 reason = (f"{what} to {target:.6g} failed (last SNES reason {result.reason_name}) after {cutbacks} "
                           f"cut-backs; stopped at {current:.6g}: {report['message']}")
+            else:
+                cause, cutting_helps = cause_of(result)
+                if not cutting_helps:
+                    reason = (f"{what} to {target:.6g} failed (last SNES reason {result.reason_name}) after "
+                              f"{cutbacks} cut-backs; stopped at {current:.6g}: {cause}")
+                elif cause:
+                    reason = f"{reason}; {cause}"
             if rank0:
                 log.error("giving up: %s", reason)
             return Outcome(False, reason, report)

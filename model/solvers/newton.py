@@ -370,6 +370,8 @@ class NewtonSolver:
         self.limited_steps = 0
         #: min det F at the last residual evaluation (collective)
         self.last_min_det_F = math.inf
+        #: the det F report of the last trial state that folded a cell in this solve (None: none did)
+        self.folded_trial: dict[str, Any] | None = None
         if self.snes.getType() in LINE_SEARCH_SNES:
             self.snes.setLineSearchPreCheck(self._precheck)
         # variable bounds (SNES VI solvers, e.g. contact): bounds(xl, xu) fills them before every solve
@@ -415,6 +417,8 @@ class NewtonSolver:
         self._copy_in(x)
         self.last_min_det_F = self.admissibility.minimum()
         folded = not self.last_min_det_F > 0.0  # folded (or NaN): the line search backs off, or the solve fails
+        if folded:  # where (for the failure message; SNES keeps the last admissible iterate, not this one)
+            self.folded_trial = self.admissibility.report()
         out = b
         if self.nested is not None:  # the mixed space's layout here, the block layout for SNES at the end
             x, b = self._mixed_x, self._mixed_b
@@ -548,6 +552,7 @@ class NewtonSolver:
         extra = dirichlet_linear = 0
         self.linear_monitor.reset()
         self.limited_steps = 0
+        self.folded_trial: dict[str, Any] | None = None
         tolerances = self.snes.getTolerances()
         rtol, atol, _, max_it = tolerances
         on_pi = self.objective and self.line_search["merit"] == "total_potential"
@@ -579,6 +584,8 @@ class NewtonSolver:
         self._copy_in(self.x)
         reason = self.snes.getConvergedReason()
         admissibility = {**self.admissibility.report(), "limited_steps": self.limited_steps}
+        if reason <= 0 and self.folded_trial is not None:
+            admissibility["folded_trial"] = self.folded_trial
         if reason > 0 and not (isinstance(admissibility["min_det_F"], float) and admissibility["min_det_F"] > 0):
             # never accepted, whatever the residual says (a state SNES took without evaluating its residual)
             log.warning("a converged state has det F = %s at %s: refused", admissibility["min_det_F"],

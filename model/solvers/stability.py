@@ -67,7 +67,7 @@ def inertia(solver: Any) -> tuple[int, int, int]:
     """(negative, zero, positive) eigenvalue counts of (K + K^T)/2 at the current state (collective)."""
     A = _jacobian(solver)
     At = A.transpose(PETSc.Mat())
-    At.axpy(1.0, A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+    At.axpy(1.0, A)  # different patterns allowed: contact couplings need not be symmetric in pattern
     At.scale(0.5)
     A.destroy()
     prefix = f"stability{next(_counter)}_"
@@ -164,13 +164,15 @@ def diagnose(solver: Any, failed_state: np.ndarray | None = None) -> dict[str, A
             report["negative_eigenvalues_failed_iterate"] = failed_negative
         current = _stiffness_along_load(solver)
         initial = None
-        if current is not None:
+        if current is not None:  # K_0: the unloaded state (u = 0, p = 0 at load factor 0)
             problem.solution.x.array[:] = 0.0
+            problem.set_load_factor(0.0)
             problem.invalidate_state()
             try:
                 initial = _stiffness_along_load(solver)
             finally:
                 problem.solution.x.array[:] = saved
+                problem.set_load_factor(lam)
                 problem.invalidate_state()
                 problem.update_state()
         ratio = initial / current if current and initial else None
