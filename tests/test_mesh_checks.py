@@ -375,6 +375,6 @@ def test_inverted_curved_cell_is_refused(shared_tmp: Path, move: str) -> None:
     assert "\n" not in message
     assert MPI.COMM_WORLD.allgather(message) == [message] * MPI.COMM_WORLD.size
     centroid = points[data.cells[cell]].mean(axis=0)
-    assert message.startswith(f"mesh.file: 1 curved cells are inverted (the Jacobian determinant of the 10-node "
+    assert message.startswith(f"mesh.file: 1 curved cell is inverted (the Jacobian determinant of the 10-node "
                               f"map is negative or zero inside the cell, its vertices' tetrahedron is not), worst: "
                               f"cell {cell} at ({', '.join(f'{c:.6g}' for c in centroid)}); "), message

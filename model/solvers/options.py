@@ -8,11 +8,12 @@ ConfigError ``solver.petsc_options.KEY: ...`` for the first bad value in the ord
 
 An option is recognised by its last component, so that the prefixed options of sub-solvers
 (``fieldsplit_u_ksp_type``, ``fieldsplit_p_pc_type``, ``mg_levels_ksp_max_it``, ``sub_pc_type``, ...) are
-checked as ``ksp_type``, ``pc_type``, ``ksp_max_it``:
+checked as ``ksp_type``, ``pc_type``, ``*_max_it``:
 
 - type names, against what this PETSc build has registered (probed on throwaway objects on COMM_SELF, with
-  PETSc's error printing switched off: PETSc.Sys.pushErrorHandler("ignore"), popErrorHandler):
-  ``ksp_type`` (KSP.setType), ``pc_type`` (PC.setType), ``snes_type`` (SNES.setType),
+  PETSc's error printing switched off: PETSc.Sys.pushErrorHandler("ignore"), popErrorHandler; both exist in
+  petsc4py 3.18 and 3.22): ``ksp_type`` (KSP.setType), ``pc_type`` (PC.setType), ``snes_type`` (petsc4py's
+  SNES.Type list: setType of a type that needs a DM, "aspin", crashes PETSc 3.18 on a bare SNES),
   ``snes_linesearch_type`` (SNES.setFromOptions with the name under a probe prefix: petsc4py 3.18 has no
   SNESLineSearch class), ``pc_factor_mat_solver_type`` (an LU, or the factorisation the same prefix's
   ``pc_type`` names, of a 2 x 2 matrix by that package: PC.setFactorSolverType, setUp);
