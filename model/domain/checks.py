@@ -28,10 +28,11 @@ Folds (an error, ConfigError starting with the mesh key):
     sign(V_c) det J <= 6e-12 h^3 at any of them (against its own vertex tetrahedron's orientation, which
     (a) and (b) have accepted, or zero at the scale of (a)) is an error naming the worst cells, ordered by
     r_c = min det J / max |det J| over the cell's points (with det J taken in the vertex tetrahedron's
-    sense). Sampled: a fold between the points is not seen, but an edge node moved that far puts one at
-    a vertex (the quarter-point limit) or at a point of the rule. min_c r_c (1 for straight sides) is
-    ``quality["min_jacobian_ratio"]``. Vectorised: one matrix product per block of cells; 0.016 s for
-    11 019 cells, 3.5 % of reading that mesh (benchmarks/curved_check.py; docs/configuration.md, "Mesh checks").
+    sense). Sampled: a fold small enough to lie between the points is not seen; an edge node moved along
+    its edge past the quarter point makes det J < 0 at the near vertex, one of the nodes. min_c r_c (1 for
+    straight sides) is ``quality["min_jacobian_ratio"]``. Vectorised: one matrix product per block of
+    cells; 0.016 s for 11 019 cells, 3.5 % of reading that mesh (benchmarks/curved_check.py;
+    docs/configuration.md, "Mesh checks").
 
 Quality (a warning, and ``Domain.quality`` for summary.json): the normalised radius ratio
 q = 3 r_in / r_circ, with r_in = 3 |V| / (sum of the face areas) and r_circ the circumsphere's
