@@ -134,7 +134,8 @@ def known_type(option: str, name: str) -> bool:
                 return False
             finally:
                 db.delValue(f"{_PROBE}snes_linesearch_type")
-                snes.destroy()
+                with contextlib.suppress(PETSc.Error):
+                    snes.destroy()
         made = getattr(PETSc, _PETSC_CLASS[option])().create(PETSc.COMM_SELF)
         try:
             made.setType(name)
@@ -142,7 +143,7 @@ def known_type(option: str, name: str) -> bool:
         except PETSc.Error:
             return False
         finally:
-            with contextlib.suppress(PETSc.Error):  # a "python" type without its context refuses destroy
+            with contextlib.suppress(PETSc.Error):  # KSP pipelcg refuses destroy before its set-up (3.18)
                 made.destroy()
 
 
@@ -165,8 +166,9 @@ def known_factor_package(package: str, factorisation: str = "lu") -> bool:
         except PETSc.Error:
             return False
         finally:
-            pc.destroy()
-            matrix.destroy()
+            with contextlib.suppress(PETSc.Error):
+                pc.destroy()
+                matrix.destroy()
 
 
 def _check_type(key: str, option: str, value: Value, options: Mapping[str, Value]) -> None:
