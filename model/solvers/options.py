@@ -189,9 +189,11 @@ def _check_type(key: str, option: str, value: Value, options: Mapping[str, Value
         accepted = [n for n in LINE_SEARCHES if known_type(option, n)]
         raise ConfigError(f"solver.petsc_options.{key}: {value!r} is not a {what} PETSc knows "
                           f"(one of: {', '.join(accepted)})")
-    near = difflib.get_close_matches(name, sorted(type_names(option)), n=3) if name else []
-    close = [n for n in near if known_type(option, n)]
-    hint = f"did you mean {close[0]!r}?" if close else \
+    near = [n for n in difflib.get_close_matches(name, sorted(type_names(option)), n=3) if known_type(option, n)] \
+        if name else []
+    score = [difflib.SequenceMatcher(None, name, n).ratio() for n in near]
+    close = sorted(n for n, r in zip(near, score) if r == max(score))[:2]  # the closest, and one that ties
+    hint = f"did you mean {' or '.join(map(repr, close))}?" if close else \
         f"e.g. {', '.join(n for n in _COMMON[option] if known_type(option, n))}"
     raise ConfigError(f"solver.petsc_options.{key}: {value!r} is not a {what} PETSc knows ({hint})")
 
