@@ -50,9 +50,9 @@ FACTOR_PC_TYPES = ("lu", "cholesky", "ilu", "icc")
 #: packages the factor probe tries to list the ones this PETSc has
 FACTOR_PACKAGES = ("mumps", "superlu_dist", "superlu", "umfpack", "klu", "cholmod", "petsc", "mkl_pardiso",
                    "mkl_cpardiso", "pastix", "strumpack", "lusol", "spqr")
-#: the line searches a message lists (those of them this PETSc has: "none" is 3.18's alias of basic); a name
-#: not among them is still accepted when PETSc knows it (shell, ncglinear)
-LINE_SEARCHES = ("basic", "bt", "l2", "cp", "nleqerr", "none")
+#: the line searches a message lists (those of them this PETSc has: "none" is an alias of basic, "secant" the
+#: later PETSc name of l2); a name not among them is still accepted when PETSc knows it (shell, ncglinear)
+LINE_SEARCHES = ("basic", "bt", "l2", "secant", "cp", "nleqerr", "none")
 #: options (last component) that take a boolean
 BOOLEAN_OPTIONS = ("ksp_initial_guess_nonzero", "ksp_error_if_not_converged", "snes_error_if_not_converged",
                    "ksp_diagonal_scale", "ksp_diagonal_scale_fix", "snes_ksp_ew", "pc_gamg_reuse_interpolation",
