@@ -23,8 +23,8 @@ Folds (an error, ConfigError starting with the mesh key):
     X(xi) = sum_a N_a(xi) x_a has J = dX/dxi = sum_a x_a (grad_xi N_a)^T, and det J, a cubic in xi, is
     6 V_c everywhere for straight sides. An edge node moved far enough (along its edge past the quarter
     point, or across the cell) makes det J change sign inside the cell although the vertex tetrahedron
-    is fine: the map folds (a run then dies in its first residual where det J vanishes at a quadrature
-    point, or solves for a body that overlaps itself). det J is evaluated at the points of the
+    is fine: the map folds (a run then can die in its first residual, NaN, or solve for a body that
+    overlaps itself). det J is evaluated at the points of the
     degree-4 rule (CURVED_RULE_DEGREE, 14 points) and at the 10 nodes; a cell with
     sign(V_c) det J <= 6e-12 h^3 at any of them (against its own vertex tetrahedron's orientation, which
     (a) and (b) have accepted, or zero at the scale of (a)) is an error naming the worst cells, ordered by
