@@ -378,3 +378,5 @@ def test_inverted_curved_cell_is_refused(shared_tmp: Path, move: str) -> None:
     assert message.startswith(f"mesh.file: 1 curved cell is inverted (the Jacobian determinant of the 10-node "
                               f"map is negative or zero inside the cell, its vertices' tetrahedron is not), worst: "
                               f"cell {cell} at ({', '.join(f'{c:.6g}' for c in centroid)}); "), message
+    head, _, ratio = message.rpartition("; in the worst, min det J / max |det J| = ")
+    assert head and -1 <= float(ratio) < 0, message

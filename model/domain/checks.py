@@ -160,7 +160,7 @@ def _check_curved(msh: Any, key: str, original: np.ndarray, centroids: np.ndarra
         cells = "1 curved cell is" if n_bad == 1 else f"{n_bad} curved cells are"
         raise ConfigError(f"{key}: {cells} inverted (the Jacobian determinant of the 10-node map is negative or "
                           f"zero inside the cell, its vertices' tetrahedron is not), worst: {what}; "
-                          f"min det J / max |det J| in a cell {worst[0][0]:.3g}")
+                          f"in the worst, min det J / max |det J| = {worst[0][0]:.3g}")
     return comm.allreduce(float(ratio.min()) if num_owned else np.inf, op=MPI.MIN)
 
 
