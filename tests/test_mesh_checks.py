@@ -337,6 +337,8 @@ def test_curved_cells_that_stay_valid_pass(shared_tmp: Path) -> None:
         assert compat.geometry_degree(domain.mesh) == 2
         ratios[jitter] = domain.quality["min_jacobian_ratio"]
         assert MPI.COMM_WORLD.allgather(ratios[jitter]) == [ratios[jitter]] * MPI.COMM_WORLD.size
+        alone = make_domain(parse(file_config(path), EXAMPLES).mesh, MPI.COMM_SELF)  # the one-rank value
+        assert alone.quality["min_jacobian_ratio"] == pytest.approx(ratios[jitter], rel=1e-14)
     assert ratios[0.0] == pytest.approx(1.0, abs=1e-12)
     assert 0.3 < ratios[0.03] < 0.9
 
@@ -374,6 +376,9 @@ def test_inverted_curved_cell_is_refused(shared_tmp: Path, move: str) -> None:
     message = str(info.value)
     assert "\n" not in message
     assert MPI.COMM_WORLD.allgather(message) == [message] * MPI.COMM_WORLD.size
+    with pytest.raises(ConfigError) as alone:  # each rank on its own: the one-rank message
+        make_domain(parse(file_config(path), EXAMPLES).mesh, MPI.COMM_SELF)
+    assert str(alone.value) == message
     centroid = points[data.cells[cell]].mean(axis=0)
     assert message.startswith(f"mesh.file: 1 curved cell is inverted (the Jacobian determinant of the 10-node "
                               f"map is negative or zero inside the cell, its vertices' tetrahedron is not), worst: "
