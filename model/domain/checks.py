@@ -24,16 +24,15 @@ Folds (an error, ConfigError starting with the mesh key):
     6 V_c everywhere for straight sides. An edge node moved far enough (along its edge past the quarter
     point, or across the cell) makes det J change sign inside the cell although the vertex tetrahedron
     is fine: the map folds (a run then can die in its first residual, NaN, or solve for a body that
-    overlaps itself). det J is evaluated at the points of the
-    degree-4 rule (CURVED_RULE_DEGREE, 14 points) and at the 10 nodes; a cell with
-    sign(V_c) det J <= 6e-12 h^3 at any of them (against its own vertex tetrahedron's orientation, which
-    (a) and (b) have accepted, or zero at the scale of (a)) is an error naming the worst cells, ordered by
-    r_c = min det J / max |det J| over the cell's points (with det J taken in the vertex tetrahedron's
-    sense). Sampled: a fold small enough to lie between the points is not seen; an edge node moved along
-    its edge past the quarter point makes det J < 0 at the near vertex, one of the nodes. min_c r_c (1 for
-    straight sides) is ``quality["min_jacobian_ratio"]``. Vectorised: one matrix product per block of
-    cells; 0.016 s for 11 019 cells, 3.5 % of reading that mesh (benchmarks/curved_check.py;
-    docs/configuration.md, "Mesh checks").
+    overlaps itself). det J is evaluated at the points of the degree-4 rule (CURVED_RULE_DEGREE, 14
+    points) and at the 10 nodes; a cell with sign(V_c) det J <= 6e-12 h^3 at any of them (against its own
+    vertex tetrahedron's orientation, which (a) and (b) have accepted, or zero at the scale of (a)) is an
+    error naming the worst cells, ordered by r_c = min det J / max |det J| over the cell's points (with
+    det J taken in the vertex tetrahedron's sense). Sampled: a fold small enough to lie between the points
+    is not seen; an edge node moved along its edge past the quarter point makes det J < 0 at the near
+    vertex, one of the nodes. min_c r_c (1 for straight sides) is ``quality["min_jacobian_ratio"]``.
+    Vectorised: one matrix product per block of cells; 0.016 s for 11 019 cells, 3.5 % of reading that
+    mesh (benchmarks/curved_check.py; docs/configuration.md, "Mesh checks").
 
 Quality (a warning, and ``Domain.quality`` for summary.json): the normalised radius ratio
 q = 3 r_in / r_circ, with r_in = 3 |V| / (sum of the face areas) and r_circ the circumsphere's
