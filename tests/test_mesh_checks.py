@@ -367,8 +367,8 @@ def test_inverted_curved_cell_is_refused(shared_tmp: Path, move: str) -> None:
     # independently: the vertex tetrahedron is the right way round, the curved map is not everywhere
     x = points[data.nodes[cell]]
     assert signed_volumes(points, data.cells[[cell]])[0] > 0
-    samples = np.vstack([np.eye(3), np.zeros(3), np.full(3, 0.25), np.random.default_rng(1).dirichlet(np.ones(4),
-                                                                                                         50)[:, 1:]])
+    inside = np.random.default_rng(1).dirichlet(np.ones(4), 50)[:, 1:]  # reference points from barycentrics
+    samples = np.vstack([np.zeros(3), np.eye(3), np.full(3, 0.25), inside])
     assert min(jacobian_by_differences(x, xi) for xi in samples) < 0
     path = on_rank0(shared_tmp, f"inverted_{move}.vtu", lambda p: write_tet10(moved, p))
     with pytest.raises(ConfigError) as info:
