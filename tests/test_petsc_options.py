@@ -150,7 +150,7 @@ def test_valid_values_still_run(shared_tmp: Path, options: dict[str, Any]) -> No
     assert {k: summary["solver"]["petsc_options"][k] for k in options} == options
 
 
-#: the issue's values, as --set writes them (TOML; a bare word is a string)
+#: the bad values above, as --set writes them (TOML; a bare word is a string)
 CLI_VALUES = [("ksp_type", "preonly_nope"), ("pc_type", '""'), ("snes_linesearch_type", "42"),
               ("pc_factor_mat_solver_type", "mumps_nope"), ("snes_rtol", "-1"), ("ksp_rtol", "tight")]
 
