@@ -67,6 +67,7 @@ from model.problem.measurements import Volumes, reactions
 from model.solvers import linear, stability
 from model.solvers.loadstepping import continuation, step_loads
 from model.solvers.newton import NewtonSolver, free_garbage
+from model.solvers.options import check_option_values
 
 log = logging.getLogger(__name__)
 
@@ -583,6 +584,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     start = time.perf_counter()
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
+    check_option_values(config.petsc_options)  # values PETSc would refuse: before anything is deleted or solved
     versions, host = comm.bcast((compat.versions(), compat.host()) if comm.rank == 0 else None, root=0)
     if comm.rank == 0:
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])

@@ -284,3 +284,104 @@ def test_guided_simulation_refuses_curved_cells(shared_tmp: Path) -> None:
     raw["discretization"] = {"degree": 1, "quadrature_degree": 1}
     with pytest.raises(ConfigError, match=r"^mesh\.file: guided simulation records the vertices of 4-node"):
         run_stage1(parse(raw, EXAMPLES))
+
+
+# --- curved (10-node) cells --------------------------------------------------------------------------------
+
+GMSH_TET10_EDGES = ((0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1))  # node 4 + k of a gmsh tet10 sits on edge k
+
+
+def quadratic_box(jitter: float = 0.03) -> tuple[meshes.MeshData, np.ndarray]:
+    """The cube (4^3 x 6 tetrahedra) with 10-node cells whose edge nodes are moved off the edges' midpoints by up
+    to ``jitter`` times the cell size in each direction (seeded); also the (num_edges, 2) vertices of the edge
+    node ``num_points + e`` (the vertices come first in ``points``)."""
+    box = meshes.box(size=(SIDE, SIDE, SIDE), cells=(4, 4, 4))
+    ends = np.sort(np.concatenate([box.cells[:, list(e)] for e in GMSH_TET10_EDGES]), axis=1)
+    edges, inverse = np.unique(ends, axis=0, return_inverse=True)
+    middles = box.points[edges].mean(axis=1)
+    middles += np.random.default_rng(7).uniform(-jitter, jitter, middles.shape) * SIDE / 4
+    nodes = np.column_stack([box.cells, box.num_points + inverse.reshape(6, -1).T])
+    return meshes.MeshData(points=np.vstack([box.points, middles]), cells=box.cells, cell_tags=box.cell_tags,
+                           facets=box.facets, facet_tags=box.facet_tags, region_names=box.region_names,
+                           boundary_names=box.boundary_names, nodes=nodes), edges
+
+
+def write_tet10(data: meshes.MeshData, path: Path) -> None:
+    """A 10-node mesh as VTU (meshio's tetra10 is VTK's order: edges 01 12 20 03 13 23)."""
+    import meshio
+
+    meshio.Mesh(data.points, [("tetra10", data.nodes[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]])]).write(path)
+
+
+def p2_map(x: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """X(xi) = sum_a N_a(xi) x_a of one gmsh-ordered tet10 (10, 3) at reference points (m, 3), from the shape
+    functions' values (not their gradients, as the check has them)."""
+    lam = np.column_stack([1 - xi.sum(axis=1), xi])
+    values = np.column_stack([lam * (2 * lam - 1)] + [4 * lam[:, a] * lam[:, b] for a, b in GMSH_TET10_EDGES])
+    return values @ x
+
+
+def jacobian_by_differences(x: np.ndarray, xi: np.ndarray, step: float = 1e-6) -> float:
+    """det dX/dxi at one reference point by central differences of p2_map."""
+    columns = [(p2_map(x, xi[None] + step * e) - p2_map(x, xi[None] - step * e))[0] / (2 * step) for e in np.eye(3)]
+    return float(np.linalg.det(np.column_stack(columns)))
+
+
+def test_curved_cells_that_stay_valid_pass(shared_tmp: Path) -> None:
+    """Edge nodes moved by up to 3 % of the cell size: every curved cell keeps det J > 0; the quality records
+    min det J / max |det J| (1 on straight sides, read from the same cells without the move)."""
+    ratios = {}
+    for jitter in (0.0, 0.03):
+        path = on_rank0(shared_tmp, f"curved{jitter}.vtu", lambda p, j=jitter: write_tet10(quadratic_box(j)[0], p))
+        domain = make_domain(parse(file_config(path), EXAMPLES).mesh, MPI.COMM_WORLD)
+        assert compat.geometry_degree(domain.mesh) == 2
+        ratios[jitter] = domain.quality["min_jacobian_ratio"]
+        assert MPI.COMM_WORLD.allgather(ratios[jitter]) == [ratios[jitter]] * MPI.COMM_WORLD.size
+        alone = make_domain(parse(file_config(path), EXAMPLES).mesh, MPI.COMM_SELF)  # the one-rank value
+        assert alone.quality["min_jacobian_ratio"] == pytest.approx(ratios[jitter], rel=1e-14)
+    assert ratios[0.0] == pytest.approx(1.0, abs=1e-12)
+    assert 0.3 < ratios[0.03] < 0.9
+
+
+@pytest.mark.parametrize("move", ["along", "across"])
+def test_inverted_curved_cell_is_refused(shared_tmp: Path, move: str) -> None:
+    """One edge node of an edge that only one cell has, moved along the edge to a tenth of it (past the
+    quarter point: det J < 0 at the near vertex) or pushed 80 % of the way across the cell to the opposite
+    edge's midpoint: that cell's vertex tetrahedron is unchanged, its curved map folds. The one-line error
+    names it (its index in the file and its vertices' centroid), the same on every rank."""
+    data, edges = quadratic_box()
+    owners = [np.flatnonzero(np.isin(data.cells, edge).sum(axis=1) == 2) for edge in edges]  # cells with the edge
+    k = next(k for k, cells in enumerate(owners) if len(cells) == 1)
+    a, b = edges[k]
+    cell = int(owners[k][0])
+    points = data.points.copy()
+    if move == "along":
+        points[data.num_points - len(edges) + k] = points[a] + 0.1 * (points[b] - points[a])
+    else:
+        middle = points[data.num_points - len(edges) + k]
+        opposite = points[[v for v in data.cells[cell] if v not in (a, b)]].mean(axis=0)
+        points[data.num_points - len(edges) + k] = middle + 0.8 * (opposite - middle)
+    moved = meshes.MeshData(points=points, cells=data.cells, cell_tags=data.cell_tags, facets=data.facets,
+                            facet_tags=data.facet_tags, region_names=data.region_names,
+                            boundary_names=data.boundary_names, nodes=data.nodes)
+    # independently: the vertex tetrahedron is the right way round, the curved map is not everywhere
+    x = points[data.nodes[cell]]
+    assert signed_volumes(points, data.cells[[cell]])[0] > 0
+    inside = np.random.default_rng(1).dirichlet(np.ones(4), 50)[:, 1:]  # reference points from barycentrics
+    samples = np.vstack([np.zeros(3), np.eye(3), np.full(3, 0.25), inside])
+    assert min(jacobian_by_differences(x, xi) for xi in samples) < 0
+    path = on_rank0(shared_tmp, f"inverted_{move}.vtu", lambda p: write_tet10(moved, p))
+    with pytest.raises(ConfigError) as info:
+        make_domain(parse(file_config(path), EXAMPLES).mesh, MPI.COMM_WORLD)
+    message = str(info.value)
+    assert "\n" not in message
+    assert MPI.COMM_WORLD.allgather(message) == [message] * MPI.COMM_WORLD.size
+    with pytest.raises(ConfigError) as alone:  # each rank on its own: the one-rank message
+        make_domain(parse(file_config(path), EXAMPLES).mesh, MPI.COMM_SELF)
+    assert str(alone.value) == message
+    centroid = points[data.cells[cell]].mean(axis=0)
+    assert message.startswith(f"mesh.file: 1 curved cell is inverted (the Jacobian determinant of the 10-node "
+                              f"map is negative or zero inside the cell, its vertices' tetrahedron is not), worst: "
+                              f"cell {cell} at ({', '.join(f'{c:.6g}' for c in centroid)}); "), message
+    head, _, ratio = message.rpartition("; in the worst, min det J / max |det J| = ")
+    assert head and -1 <= float(ratio) < 0, message

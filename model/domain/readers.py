@@ -80,9 +80,9 @@ def make_domain(cfg: MeshConfig, comm: MPI.Comm) -> Domain:
     domain.quality = check_mesh(domain.mesh, key)
     if compat.geometry_degree(domain.mesh) > 1 and comm.rank == 0:
         log.warning("%s: 10-node tetrahedra: the geometry is curved (degree 2); approximated by the straight-"
-                    "sided vertex tetrahedra: the fold and quality checks, the VTU files and the PNG; integrals "
-                    "use discretization.quadrature_degree (3 or more integrates a curved cell's volume exactly)",
-                    key)
+                    "sided vertex tetrahedra: the fold and quality checks (the curved map is checked for inverted "
+                    "cells on its own), the VTU files and the PNG; integrals use discretization.quadrature_degree "
+                    "(3 or more integrates a curved cell's volume exactly)", key)
     return domain
 
 
