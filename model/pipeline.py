@@ -618,7 +618,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         # the degrees used: the materials' energy, and the loads / surfaces / inertia (quadrature_degrees)
         "quadrature_degree": {"energy": problem.energy_quadrature_degree, "loads": problem.quadrature_degree},
         "region_volumes": volumes.reference,
-        "mesh_quality": {k: setup.domain.quality[k] for k in ("min_radius_ratio", "worst_cell_centroid", "measure")
+        "mesh_quality": {k: setup.domain.quality[k] for k in ("min_radius_ratio", "worst_cell_centroid", "measure",
+                                                              "min_jacobian_ratio")
                          if k in setup.domain.quality},
         "boundary_areas": volumes.areas,
         **({"render_mesh": setup.render.summary()} if setup.render is not None else {}),
