@@ -73,7 +73,7 @@ def cause_of(result: SolveResult) -> tuple[str, bool]:
     if name == "DIVERGED_LINEAR_SOLVE":
         return LINEAR_ADVICE, False
     fold = (result.admissibility or {}).get("folded_trial")
-    if name == "DIVERGED_FUNCTION_DOMAIN" and fold:
+    if fold:  # DIVERGED_FUNCTION_DOMAIN (PETSc may also report the domain error's residual as DIVERGED_FNORM_NAN)
         point = fold.get("min_det_F_point")
         where = f" near ({', '.join(f'{c:.4g}' for c in point)})" if point else ""
         return (f"every attempt folded cells (det F = {fold.get('min_det_F')}{where} in its last trial state): "
