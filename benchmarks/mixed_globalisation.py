@@ -3,7 +3,9 @@
 Cases (each run through the normal configuration route, in this process): Cook's membrane (nu = 0.4999) with
 24x the benchmark's shear load in one step, the thick-walled incompressible sphere at 0.95 of its pressure
 maximum (examples/thick_sphere.toml under load control, 4 steps), the idealised ventricle
-(examples/ventricle.toml, incompressible, follower pressure, curved P2 cells) on its two mesh sizes.
+(examples/ventricle.toml, incompressible, follower pressure, curved P2 cells) on its two mesh sizes, and three
+harder ones: the ventricle near its load maximum in 2 steps, the sphere at 0.98 p_max in one step, Cook's
+membrane at 40x its load in one step.
 
 Variants:
   unchecked    full Newton steps, no admissibility check (the behaviour before det F was checked)
@@ -41,6 +43,14 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
                                       "boundary.3.value": 0.95 * P_MAX * 1000.0}),
     "ventricle": ("ventricle", {}),
     "ventricle_fine": ("ventricle", {"mesh.parameters": {"size": 0.004}}),
+    # large steps near the limit: the ventricle at 1.2 kPa (its maximum is near 1.24 kPa) in 2 steps, the sphere
+    # at 0.98 p_max in one, Cook's membrane at 40x its load in one
+    "ventricle_hard": ("ventricle", {"boundary.3.value": 1200.0, "loading.steps": 2}),
+    "thick_sphere_hard": ("thick_sphere", {"loading.control": "load", "loading.steps": 1,
+                                           "boundary.3.value": 0.98 * P_MAX * 1000.0}),
+    "cook_overload_40": ("cook", {"mesh.cells": 4, "boundary.3.value": [0.0, 250.0, 0.0], "loading.steps": 1}),
+    # a follower pressure bending a Guccione beam (a user law), where bt on the residual norm was 5x slower
+    "guccione_beam": ("guccione_beam", {}),
 }
 VARIANTS = ("unchecked", "domain", "limited", "bt", "tr")
 
