@@ -58,7 +58,8 @@ class SolverConfig(Variant):
         "positive semi-definite tensors (displacement formulation only)", default="exact")
     linear: Literal["direct", "iterative", "auto"] = key(
         "Newton's linear solver: \"direct\" (MUMPS LU), \"iterative\" (displacement formulation: CG + GAMG with the "
-        "rigid-body near null space, GMRES + GAMG where the tangent is not symmetric (a follower pressure); mixed: GMRES with a Schur-complement fieldsplit (the full block factorisation), "
+        "rigid-body near null space, GMRES + GAMG where the tangent is not symmetric (a follower pressure); mixed: "
+        "GMRES with a Schur-complement fieldsplit (the full block factorisation), "
         "AMG on the displacement block (rigid-body modes and the dilation as near null space) and the "
         "(1/mu + 1/kappa)-weighted pressure mass matrix for the Schur complement) or \"auto\" (direct below "
         "50000 unknowns, iterative from there); petsc_options override any of its options",

@@ -337,9 +337,9 @@ def check_supports(problem: ElasticityProblem, contacts: Sequence[Any] = (), sli
                               f"their {describe_modes(together)} as a whole: {REMEDY}")
         for p in unheld:
             others = _and([str(pieces[q].number) for q in members if q != p])
-            warnings.append(f"{pieces[p].describe(count)}: only contact with mesh piece{'s' if len(members) > 2 else ''}"
-                            f" {others} can hold its {describe_modes(free[p])}; a solve fails while that contact is "
-                            "open")
+            plural = "s" if len(members) > 2 else ""
+            warnings.append(f"{pieces[p].describe(count)}: only contact with mesh piece{plural} {others} can hold its "
+                            f"{describe_modes(free[p])}; a solve fails while that contact is open")
     if comm.rank == 0:
         for message in warnings:
             log.warning("support check: %s", message)
