@@ -276,20 +276,18 @@ def _couplings(problem: ElasticityProblem, nodes: _Nodes, contacts: Sequence[Any
             i = parent[i]
         return i
 
-    links = []
+    comm = problem.domain.mesh.comm
     for c in contacts:
         slave, master = getattr(c, "slave", None), getattr(c, "master", None)
         if slave is None or master is None:
             continue
-        touched = set(np.unique(nodes.piece[nodes.surface(problem, slave)]).tolist())
-        touched |= set(np.unique(nodes.piece[nodes.surface(problem, master)]).tolist())
-        links.append(touched)
-    comm = problem.domain.mesh.comm
-    for touched in comm.allgather(links):
-        for group in touched:
-            group = sorted(group)
-            for other in group[1:]:
-                parent[find(other)] = find(group[0])
+        touched = np.zeros(count, dtype=np.int32)  # the pieces the pair's surfaces touch, on any rank
+        for surface in (slave, master):
+            touched[nodes.piece[nodes.surface(problem, surface)]] = 1
+        comm.Allreduce(MPI.IN_PLACE, touched, op=MPI.MAX)
+        group = np.flatnonzero(touched)
+        for other in group[1:]:
+            parent[find(int(other))] = find(int(group[0]))
     groups: dict[int, set[int]] = {}
     for i in range(count):
         groups.setdefault(find(i), set()).add(i)
