@@ -91,8 +91,16 @@ def _projected(raw: dict[str, Any]) -> dict[str, Any]:
     return raw
 
 
+def _law(law: dict[str, Any]) -> dict[str, Any]:
+    raw = box()
+    raw["material"] = [{"region": "all", **law}]
+    return raw
+
+
 CASES = {
     "traction": (lambda: box(), True),
+    "corotated (the polar rotation at the points)": (lambda: _law({"law": "corotated", "E": 1e4, "nu": 0.3}), True),
+    "ogden (the eigen state at the points)": (lambda: _law({"law": "ogden", "c1": 1e3, "m1": 3.0, "kappa": 1e4}), True),
     "follower pressure": (lambda: box(pressure=True), False),
     "follower pressure, projected tangent": (lambda: _projected(box(pressure=True)), False),
     "mixed": (lambda: box(mixed=True, cells=1), True),
