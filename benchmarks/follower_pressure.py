@@ -73,13 +73,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=6, help="n of the 10n x n x n boxes")
     parser.add_argument("--steps", type=int, default=2, help="load steps")
+    parser.add_argument("--variants", type=int, nargs="+", default=list(range(len(VARIANTS))),
+                        help="which rows to run (0: CG, 1: GMRES, 2: BiCGStab)")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING, format="%(message)s")
     comm = MPI.COMM_WORLD
     out = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0))
     solve(beam(1, 1, {}), out / "warm-up")
     rows = []
-    for name, options in VARIANTS:
+    for name, options in (VARIANTS[i] for i in args.variants):
         summary, seconds, status = solve(beam(args.n, args.steps, options), out / name.split()[0])
         counts = [c for s in summary["steps"] for c in s.get("linear_iterations_per_newton", [])]
         converged = [s for s in summary["steps"] if s["converged"]]
