@@ -596,6 +596,10 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     from model.solvers.scale import scale_check
 
     _check_matrix(problem, config, setup.contacts)  # [solver] matrix = "nest" where it cannot serve: before any solve
+    if not config.solver.allow_rigid_modes and not (config.dynamics is not None and config.dynamics.is_dynamic):
+        from model.problem.supports import check_supports  # every mesh piece held (a dynamic run needs no supports)
+
+        check_supports(problem, setup.contacts, setup.sliding)
     scale = scale_check(problem, config)  # before any solve: loads, moduli and size against the units
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
     if dynamic and config.dynamics.initial == "equilibrium" and earlier is None:

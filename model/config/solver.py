@@ -58,7 +58,8 @@ class SolverConfig(Variant):
         "positive semi-definite tensors (displacement formulation only)", default="exact")
     linear: Literal["direct", "iterative", "auto"] = key(
         "Newton's linear solver: \"direct\" (MUMPS LU), \"iterative\" (displacement formulation: CG + GAMG with the "
-        "rigid-body near null space; mixed: GMRES with a Schur-complement fieldsplit (the full block factorisation), "
+        "rigid-body near null space, GMRES + GAMG where the tangent is not symmetric (a follower pressure); mixed: "
+        "GMRES with a Schur-complement fieldsplit (the full block factorisation), "
         "AMG on the displacement block (rigid-body modes and the dilation as near null space) and the "
         "(1/mu + 1/kappa)-weighted pressure mass matrix for the Schur complement) or \"auto\" (direct below "
         "50000 unknowns, iterative from there); petsc_options override any of its options",
@@ -69,6 +70,10 @@ class SolverConfig(Variant):
         "Jacobian assembled into one matrix, which every preconditioner takes) or \"auto\" (nest with the "
         "mixed formulation's fieldsplit preconditioner and no contact or sliding between bodies, aij otherwise)",
         default="auto")
+    allow_rigid_modes: Flag = key(
+        "skip the support check before the solve, which refuses a run where a piece of the mesh can move rigidly "
+        "(a translation or rotation that no displacement condition, bone or contact holds; docs/configuration.md)",
+        default=False)
     petsc_options: PetscOptions = key(
         "PETSc options without their leading '-', e.g. { snes_rtol = 1e-8, ksp_type = \"preonly\" }",
         default_factory=dict)
@@ -84,7 +89,7 @@ class SolverConfig(Variant):
 class NewtonSettings(SolverConfig):
     """[solver] with method = "newton" (the default): PETSc SNES with line search."""
 
-    keys = ("method", "tangent", "linear", "matrix", "petsc_options")
+    keys = ("method", "tangent", "linear", "matrix", "allow_rigid_modes", "petsc_options")
     method: Literal["newton"] = key("the nonlinear solver: PETSc SNES Newton", default="newton")
 
 
@@ -92,7 +97,7 @@ class ProjectiveDynamicsSettings(SolverConfig):
     """[solver] with method = "projective_dynamics": a local polar step per quadrature point and a global
     linear solve with a constant matrix, until the residual is small."""
 
-    keys = ("method", "petsc_options", "pd_max_iterations", "pd_rtol", "pd_atol")
+    keys = ("method", "allow_rigid_modes", "petsc_options", "pd_max_iterations", "pd_rtol", "pd_atol")
     method: Literal["projective_dynamics"] = key("the nonlinear solver: Projective Dynamics iterations")
 
 

@@ -373,6 +373,15 @@ class BodyContact:
                     "(the slip of the closest point is lagged)")
         return None
 
+    def symmetry_reason(self) -> str | None:
+        """None: the matrix the pair adds to Newton's, K = d2Pi_c/du2 + C with C = K_uz Pi + Pi^T K_zu +
+        Pi^T K_zz Pi (exact: the same with the vertex slots P_i), is the Hessian of Pi_c(u, z = Pi u) at the lagged
+        pairing and normal: K_zu = K_uz^T and K_zz = K_zz^T, so K = K^T (ElasticityProblem.symmetry_reason). This
+        holds with smoothed normals too: there the residual is not dPi_c/du (potential_reason) and K is not its
+        exact derivative, but the matrix is still symmetric (measured: |K - K^T| / |K| ~ 1e-18,
+        tests/test_symmetry.py)."""
+        return None
+
     def _gather_master(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every rank's master triangles: reference (m, 3, 3), current (m, 3, 3) and global block dofs (m, 3)."""
         u = self.problem.solution.x.array.reshape(-1, self.bs)

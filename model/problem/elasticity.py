@@ -199,6 +199,9 @@ class ElasticityProblem:
         self.follower_pressures: list[str] = []
         #: how many residual terms add_residual added (inertia, damping: no potential)
         self.residual_terms = 0
+        #: per term add_residual added: why its derivative (its part of the Jacobian) is symmetric, or None (not
+        #: known to be: symmetry_reason then takes the Jacobian as nonsymmetric)
+        self.residual_symmetry: list[str | None] = []
         self._potential_form: compat.Form | None = None
         self._energy_form: compat.Form | None = None
         self._energy_forms: dict[str, compat.Form] | None = None
@@ -388,13 +391,17 @@ class ElasticityProblem:
             out.append((P, dx))
         return out
 
-    def add_residual(self, form: ufl.Form) -> None:
+    def add_residual(self, form: ufl.Form, symmetric: str | None = None) -> None:
         """Add a residual term linear in the test functions (self.v, self.q), e.g. inertia or damping.
 
-        Call before a solver is created (the forms are compiled then).
+        ``symmetric``: why the term's derivative d(form)/du [du] is symmetric in (v, du), when it is (the time
+        integrator's inertia and Rayleigh damping: model.solvers.dynamics); None (the default): not known, and
+        the Jacobian is taken as nonsymmetric (symmetry_reason). Call before a solver is created (the forms are
+        compiled then).
         """
         self.internal += form
         self.residual_terms += 1
+        self.residual_symmetry.append(symmetric)
         self._forms = None
 
     def add_load_hook(self, hook: Callable[[float], None]) -> None:
@@ -525,6 +532,40 @@ class ElasticityProblem:
             return "residual terms without a potential (inertia, damping) were added"
         for coupling in self.couplings:  # contact between bodies whose residual is not its energy's derivative
             reason = getattr(coupling, "potential_reason", lambda: None)()
+            if reason is not None:
+                return reason
+        return None
+
+    def symmetry_reason(self, tangent: str = "exact") -> str | None:
+        """None when Newton's matrix J is symmetric, else why it is not (the linear presets pick the Krylov method
+        by it: model.solvers.linear.resolve; docs/solvers.md, "Which tangents are symmetric").
+
+        Symmetric terms (J_ij = J_ji): the materials' d2psi/du2 (the Hessian of a strain-energy density; with the
+        projected tangent its per-point PSD projection A_proj = A_proj^T), every energy added with add_energy (its
+        Hessian d2Pi/du2: obstacle contact, sliding on bones, augmented Lagrangian at fixed multipliers), the mixed
+        formulation's [A B^T; B C] (symmetric indefinite: C = -int p q / kappa dx), the Dirichlet rows and columns
+        (zeroed, 1 on the diagonal) and the couplings' C = K_uz Pi + Pi^T K_zu + Pi^T K_zz Pi (their
+        ``symmetry_reason``). Not symmetric:
+
+            follower pressure   d/du [p J F^-T N . v] = p J ((F^-T : grad du) F^-T - F^-T grad du^T F^-T) N . v,
+                                not symmetric in (v, du) on a surface with a free rim (on a closed surface, or one
+                                whose rim is held, its assembled matrix is the Hessian of p V and symmetric; that is
+                                not looked for: treated as nonsymmetric). Kept by the projected tangent.
+            add_residual        a term whose symmetry was not stated (``symmetric`` None); the projected tangent
+                                leaves such terms out of J (only the materials and the external loads).
+            couplings           one whose ``symmetry_reason`` says so, or that has none (unknown).
+        """
+        if self.follower_pressures:
+            return (f"the follower pressure on {', '.join(repr(b) for b in self.follower_pressures)} has a "
+                    "nonsymmetric load stiffness")
+        unknown = sum(reason is None for reason in self.residual_symmetry)
+        if unknown and tangent == "exact":
+            return f"{unknown} residual term(s) of unknown symmetry were added (add_residual)"
+        for coupling in self.couplings:
+            method = getattr(coupling, "symmetry_reason", None)
+            name = getattr(coupling, "name", type(coupling).__name__)
+            reason = method() if method is not None else f"the coupling {name} does not say whether its matrix is " \
+                                                           "symmetric"
             if reason is not None:
                 return reason
         return None

@@ -192,7 +192,7 @@ class Dynamics:
         self.inertia_form = self._mass(acceleration, problem.v)
         self.damping_form = self._damping(velocity)
         residual = self.inertia_form if self.damping_form is None else self.inertia_form + self.damping_form
-        problem.add_residual(residual)
+        problem.add_residual(residual, symmetric=self._symmetry(problem))
 
         kinetic = 0.5 * self._mass(vn, vn)
         self._kinetic_form = fem.form(kinetic)
@@ -205,6 +205,22 @@ class Dynamics:
         self._mass_solver: tuple[Any, ...] | None = None
 
     # --- forms ---------------------------------------------------------------------------------------
+
+    def _symmetry(self, problem: ElasticityProblem) -> str | None:
+        """Why the derivative of the inertia and damping terms is symmetric (ElasticityProblem.add_residual), or
+        None when it may not be.
+
+        With a = c_a u + (old state), v = c_v u + (old state) (c_a, c_v > 0 scalars of the scheme and dt):
+        d/du [rho a . w] = c_a M, d/du [a_M rho v . w] = a_M c_v M, and
+        d/du [b_K K(u) v . w] = b_K (c_v K(u) + D3f[v](du, w)), where K = df_int/du and D3f[v](du, w) =
+        d/du (K(u)[v, w]) [du]. When f_int = dPi/du (every term of problem.internal from an energy: the materials
+        and add_energy), K is Pi's Hessian and D3f is Pi's third derivative, symmetric in all three arguments.
+        A residual term of unknown symmetry added to the problem before (its internal form, the stiffness damping's
+        f_int) makes the damping's derivative unknown: None (with b_K > 0)."""
+        if self.rayleigh[1] > 0.0 and any(reason is None for reason in problem.residual_symmetry):
+            return None
+        return ("inertia and Rayleigh damping: c_a M + a_M c_v M + b_K (c_v K + D3Pi[v]), the mass matrix and "
+                "the derivatives of a potential")
 
     def _displacement(self, f: fem.Function) -> ufl.core.expr.Expr:
         return ufl.split(f)[0] if self.mixed else f

@@ -3,7 +3,8 @@
 Presets (flat PETSc options, under the solver's prefix; ``petsc_options`` override any of them):
 
     direct      preonly + LU (MUMPS)
-    iterative   displacement formulation: CG + GAMG, the six rigid-body modes as near null space
+    iterative   displacement formulation: CG + GAMG, the six rigid-body modes as near null space; GMRES + GAMG
+                where Newton's matrix is not symmetric (ElasticityProblem.symmetry_reason: a follower pressure)
                 mixed (Taylor-Hood P_k/P_(k-1)): GMRES, right preconditioned by a Schur-complement fieldsplit
     auto        direct below AUTO_DOFS unknowns (global), iterative from there
 
@@ -88,6 +89,19 @@ ITERATIVE_DISPLACEMENT: Options = {
     "mg_levels_ksp_type": "chebyshev",
     "mg_levels_pc_type": "jacobi",
 }
+#: displacement formulation with a nonsymmetric tangent (ElasticityProblem.symmetry_reason: a follower pressure, a
+#: residual term of unknown symmetry): CG needs J = J^T, so GMRES, right preconditioned (its residual norm is the
+#: true one), with the same GAMG (a fixed linear operator: GMRES, not FGMRES). The restart is above the iterations
+#: a Newton step takes (docs/solvers.md, "Nonsymmetric tangents": 20-30 on the follower-pressure beam at 6e4 dofs),
+#: so GMRES never restarts there.
+ITERATIVE_DISPLACEMENT_NONSYMMETRIC: Options = {
+    **ITERATIVE_DISPLACEMENT,
+    "ksp_type": "gmres",
+    "ksp_pc_side": "right",
+    "ksp_gmres_restart": 200,
+}
+#: Krylov methods that need a symmetric matrix (a warning when the user picks one for a nonsymmetric tangent)
+SYMMETRIC_KRYLOV = ("cg", "minres", "symmlq", "cr", "pipecg", "pipecr", "groppcg", "nash", "stcg", "gltr", "qcg")
 #: mixed formulation: GMRES, right preconditioned by the Schur fieldsplit (full), GAMG on u, SSOR on the weighted
 #: pressure mass matrix. The preconditioner is a fixed linear operator (two V-cycles, one SOR sweep), so GMRES is
 #: enough and keeps one basis where FGMRES keeps two (1 GB at 1e6 dofs); an inner Krylov solve in the user's options
@@ -138,11 +152,22 @@ class LinearChoice:
     preset: str
     dofs: int
     options: Options = field(default_factory=dict)
+    #: why Newton's matrix is not symmetric (ElasticityProblem.symmetry_reason), None when it is
+    nonsymmetric_because: str | None = None
+
+    @property
+    def symmetric(self) -> bool:
+        return self.nonsymmetric_because is None
 
     def as_dict(self, effective: Options) -> dict[str, Any]:
-        """For summary.json: ``linear`` (the resolved preset), what was asked for, and the PETSc options in effect."""
-        return {"linear": self.preset, "linear_requested": self.requested, "dofs": self.dofs,
-                "auto_dofs": AUTO_DOFS, "petsc_options": {k: effective[k] for k in sorted(effective)}}
+        """For summary.json: ``linear`` (the resolved preset), what was asked for, the PETSc options in effect,
+        ``symmetric`` (whether Newton's matrix is) and, when it is not, ``nonsymmetric_because``."""
+        out: dict[str, Any] = {"linear": self.preset, "linear_requested": self.requested, "dofs": self.dofs,
+                               "auto_dofs": AUTO_DOFS, "symmetric": self.symmetric}
+        if self.nonsymmetric_because is not None:
+            out["nonsymmetric_because"] = self.nonsymmetric_because
+        out["petsc_options"] = {k: effective[k] for k in sorted(effective)}
+        return out
 
 
 def shear_modulus(law: Any) -> float:
@@ -188,13 +213,18 @@ def check_options(problem: ElasticityProblem, options: Options, key: str = "solv
 
 
 def resolve(problem: ElasticityProblem, requested: str, user: Options | None = None, *,
-            vi: bool = False) -> LinearChoice:
+            vi: bool = False, tangent: str = "exact") -> LinearChoice:
     """The preset [solver] linear = ``requested`` resolves to for this problem, with its PETSc options.
 
     "auto" is "direct" below AUTO_DOFS global unknowns and "iterative" from there, except with VI contact (its
-    reduced systems have no fixed fields, and CG on them is untested): always "direct". ConfigError naming the key for
-    combinations that cannot work: the mixed iterative preset with VI contact, a law without a shear
-    modulus, or fieldsplit options naming other fields.
+    reduced systems have no fixed fields, and CG on them is untested): always "direct". The iterative preset
+    follows the symmetry of Newton's matrix (problem.symmetry_reason(tangent)): the displacement formulation
+    takes CG + GAMG where J = J^T and GMRES + GAMG where not (ITERATIVE_DISPLACEMENT_NONSYMMETRIC); the mixed
+    formulation's GMRES with the Schur fieldsplit serves both (J symmetric indefinite without a follower pressure).
+    The reason is the choice's ``nonsymmetric_because`` (summary.json). A Krylov method the user names that needs
+    a symmetric matrix (``ksp_type`` cg, minres, ...: SYMMETRIC_KRYLOV) on a nonsymmetric one is logged as a
+    warning and kept. ConfigError naming the key for combinations that cannot work: the mixed iterative preset
+    with VI contact, a law without a shear modulus, or fieldsplit options naming other fields.
     """
     user = dict(user or {})
     if requested not in PRESETS:
@@ -202,13 +232,20 @@ def resolve(problem: ElasticityProblem, requested: str, user: Options | None = N
     imap = problem.space.dofmap.index_map
     dofs = int(imap.size_global * problem.space.dofmap.index_map_bs)
     check_options(problem, user)
+    because = problem.symmetry_reason(tangent)
+    if because is not None and str(user.get("ksp_type", "")).lower() in SYMMETRIC_KRYLOV:
+        if problem.domain.mesh.comm.rank == 0:
+            log.warning("solver.petsc_options.ksp_type = %r needs a symmetric matrix, but Newton's matrix is not "
+                        "symmetric (%s): expect DIVERGED_LINEAR_SOLVE; leave ksp_type out (GMRES) or use gmres",
+                        user["ksp_type"], because)
     preset = requested
     if requested == "auto":
         preset = "iterative" if dofs >= AUTO_DOFS and not vi else "direct"
     if preset == "direct":
-        return LinearChoice(requested, preset, dofs, dict(DIRECT))
+        return LinearChoice(requested, preset, dofs, dict(DIRECT), because)
     if problem.formulation == "displacement":
-        return LinearChoice(requested, preset, dofs, _without_others(ITERATIVE_DISPLACEMENT, user))
+        chosen = ITERATIVE_DISPLACEMENT if because is None else ITERATIVE_DISPLACEMENT_NONSYMMETRIC
+        return LinearChoice(requested, preset, dofs, _without_others(chosen, user), because)
     if vi:
         raise ConfigError("solver.linear: \"iterative\" with the mixed formulation cannot be used with contact "
                           "method \"vi\" (the VI solver's reduced systems have no fixed u and p fields); use "
@@ -219,7 +256,7 @@ def resolve(problem: ElasticityProblem, requested: str, user: Options | None = N
         except ValueError as err:
             raise ConfigError(f"solver.linear: \"iterative\" with the mixed formulation needs the shear modulus of "
                               f"every material; material[{i}] (region {region!r}): {err}") from None
-    return LinearChoice(requested, preset, dofs, _without_others(ITERATIVE_MIXED, user))
+    return LinearChoice(requested, preset, dofs, _without_others(ITERATIVE_MIXED, user), because)
 
 
 def matrix_kind(problem: ElasticityProblem, requested: str, options: Options, *, tangent: str = "exact",
