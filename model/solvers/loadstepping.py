@@ -107,7 +107,8 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
     a converged one grows the increment by ``growth`` (up to 1/steps). A true Outcome when s got to 1, else
     one whose ``reason`` says why it gave up (give_up_reason). ``increment``: the first step's (a restart
     continues with the cut-back state it saved; default 1/steps). ``diagnose(failed_state)``, called when it
-    gives up (at the last converged state, with the last failed iterate's solution array): a stability report
+    gives up (at the last converged state, with the last failed iterate's solution array when that step was at most
+    a quarter of the nominal increment, else None): a stability report
     (model.solvers.stability.diagnose) whose "message", when the structure is unstable, replaces the cut-back
     advice, which cannot help there."""
     problem = solver.problem
@@ -131,7 +132,10 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
             cutbacks = 0
             increment = min(increment * growth, nominal)
             continue
-        failed_state = problem.solution.x.array.copy() if diagnose is not None else None
+        # the failed iterate's tangent says something about the path only when its step was short (cut back
+        # at least to a quarter of the nominal increment): a long step's iterate can be anywhere
+        near = target - current <= 0.25 * nominal * (1 + 1e-12)
+        failed_state = problem.solution.x.array.copy() if diagnose is not None and near else None
         problem.solution.x.array[:] = saved
         apply(current)
         cutbacks += 1
@@ -142,13 +146,13 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
         if reason is not None:
             report = diagnose(failed_state) if diagnose is not None else None
             if report is not None and report.get("unstable"):
-                reason = (f"{what} to {target:.6g} failed (last SNES reason {result.reason_name}) after {cutbacks} "
-                          f"cut-backs; stopped at {current:.6g}: {report['message']}")
+                reason = (f"{what} to {target:.6g} failed (last SNES reason {result.reason}, {result.reason_name}) "
+                          f"after {cutbacks} cut-backs; stopped at {current:.6g}: {report['message']}")
             else:
                 cause, cutting_helps = cause_of(result)
                 if not cutting_helps:
-                    reason = (f"{what} to {target:.6g} failed (last SNES reason {result.reason_name}) after "
-                              f"{cutbacks} cut-backs; stopped at {current:.6g}: {cause}")
+                    reason = (f"{what} to {target:.6g} failed (last SNES reason {result.reason}, "
+                              f"{result.reason_name}) after {cutbacks} cut-backs; stopped at {current:.6g}: {cause}")
                 elif cause:
                     reason = f"{reason}; {cause}"
             if rank0:
