@@ -129,7 +129,8 @@ def test_empty_part_of_a_key() -> None:
 
 
 def test_unknown_key_names_what_the_section_allows() -> None:
-    assert error({"loading.stpes": 3}) == "loading.stpes: unknown key (allowed: growth, max_cutbacks, steps)"
+    assert error({"loading.stpes": 3}) == "loading.stpes: unknown key (allowed: control, growth, max_cutbacks, " \
+        "max_steps, steps, volume_boundary, volume_origin, volume_ratio)"
     assert error({"solver.lienar": "direct"}).startswith("solver.lienar: unknown key (allowed: ")
     assert error({"material.0.Ee": 2e5}) == \
         "material[0].Ee: neo_hookean: unknown parameter 'Ee' (allowed: E, nu, mu, lmbda)"
@@ -157,8 +158,8 @@ def test_appending_an_incomplete_entry_is_checked_like_the_file() -> None:
 
 def test_indexing_a_table() -> None:
     assert error({"loading.0": 3}) == \
-        "loading[0]: loading is a table, not an array: name one of its keys (growth, max_cutbacks, steps) instead " \
-        "of an index"
+        "loading[0]: loading is a table, not an array: name one of its keys (control, growth, max_cutbacks, " \
+        "max_steps, steps, volume_boundary, volume_origin, volume_ratio) instead of an index"
 
 
 def test_keying_an_array() -> None:
@@ -254,11 +255,13 @@ def run_cli(tmp: Path, *sets: str) -> subprocess.CompletedProcess:
 @pytest.mark.parametrize(("sets", "message"), [
     (["loading.steps"], "--set 'loading.steps': no \"=\" (write KEY=VALUE, e.g. material.0.E=2e5)"),
     (["=3"], "--set '=3': the key is empty (write KEY=VALUE, e.g. material.0.E=2e5)"),
-    (["loading.stpes=3"], "loading.stpes: unknown key (allowed: growth, max_cutbacks, steps)"),
+    (["loading.stpes=3"], "loading.stpes: unknown key (allowed: control, growth, max_cutbacks, max_steps, steps, "
+                          "volume_boundary, volume_origin, volume_ratio)"),
     (["material.5.E=2e5"],
      "material[5].E: index 5 is out of range: material has 1 entry (indices 0 to 0, or 1 to append one)"),
-    (["loading.0=3"], "loading[0]: loading is a table, not an array: name one of its keys (growth, max_cutbacks, "
-                      "steps) instead of an index"),
+    (["loading.0=3"], "loading[0]: loading is a table, not an array: name one of its keys (control, growth, "
+                      "max_cutbacks, max_steps, steps, volume_boundary, volume_origin, volume_ratio) instead of an "
+                      "index"),
     (["material.E=2e5"], "material.E: material is an array of 1 entry, not a table: give an index, e.g. material.0.E"),
     (["loading.steps=abc"], "loading.steps: must be an integer, got 'abc'"),
     (["loading.steps=1.5"], "loading.steps: must be an integer, got 1.5"),
