@@ -102,6 +102,7 @@ def test_load_control_names_the_limit_point(shared_tmp: Path) -> None:
     message naming the instability and the load, and advice that can help (not more cut-backs)."""
     pressure = 1.2 * P_MAX * MU
     raw = sphere(steps=4, max_cutbacks=5)
+    raw["solver"] = {"petsc_options": {"snes_max_it": 12}}  # failures beyond the maximum end sooner
     raw["boundary"][3]["value"] = pressure
     with pytest.raises(SolveFailed) as failed:
         run_raw(raw, shared_tmp)
