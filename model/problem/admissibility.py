@@ -76,13 +76,22 @@ class Admissibility:
         self.region_index = {r: np.searchsorted(self.cells, c) for r, c in per_region.items()}
         geo = compat.geometry_dofs(msh)[self.cells, : tdim + 1]
         self.centroids = msh.geometry.x[geo].mean(axis=1) if len(self.cells) else np.empty((0, 3))
+        #: the solution F was last evaluated at, and that F (_gradients)
+        self._stamp: np.ndarray | None = None
+        self._last = np.empty(0)
 
     def _gradients(self) -> np.ndarray:
-        """F at the checked points of the local cells: (cells, points, 3, 3)."""
+        """F at the checked points of the local cells: (cells, points, d, d), from the current solution (kept for the
+        same solution: the residual's check and the line-search pre-check evaluate it at the same iterate)."""
         d = self.dim
         if not len(self.cells):
             return np.empty((0, self.num_points, d, d))
-        return compat.evaluate(self._F, self.mesh, self.cells).reshape(len(self.cells), self.num_points, d, d)
+        current = self.problem.solution.x.array
+        if self._stamp is not None and np.array_equal(self._stamp, current):
+            return self._last
+        self._last = compat.evaluate(self._F, self.mesh, self.cells).reshape(len(self.cells), self.num_points, d, d)
+        self._stamp = current.copy()
+        return self._last
 
     def cell_minima(self) -> np.ndarray:
         """J_min of each local material cell (NaN -> -inf), from the current solution."""
