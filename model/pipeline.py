@@ -771,8 +771,12 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
 
         loading = config.loading
         problem.set_load_factor(0.0)
-        follower = PathFollower(solver, loading.control, boundary=loading.volume_boundary,
-                                origin=list(loading.volume_origin), ratio=loading.volume_ratio)
+        try:
+            follower = PathFollower(solver, loading.control, boundary=loading.volume_boundary,
+                                    origin=list(loading.volume_origin), ratio=loading.volume_ratio)
+        except ValueError as err:  # a nested matrix, no load, a cavity of no volume: one line naming the key
+            solver.destroy()
+            raise ConfigError(f"loading.control: {loading.control!r}: {err}") from None
         summary["control"] = {"type": loading.control, **({"boundary": loading.volume_boundary,
                                                              "rest_volume": follower.initial_volume,
                                                              "volume_ratio": loading.volume_ratio}

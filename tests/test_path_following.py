@@ -136,3 +136,11 @@ def test_path_following_refuses_moving_displacements(shared_tmp: Path) -> None:
     raw["boundary"].append({"on": "xmax", "type": "displacement", "components": [0], "value": [0.1]})
     with pytest.raises(ConfigError, match="^loading.control: 'arc_length': a displacement condition moves"):
         run_raw(raw, shared_tmp)
+
+
+def test_path_following_needs_a_load(shared_tmp: Path) -> None:
+    """A run whose only load is gone (the pressure removed): one line naming the key, no traceback."""
+    raw = sphere(control="arc_length")
+    raw["boundary"] = raw["boundary"][:3]
+    with pytest.raises(ConfigError, match="^loading.control: 'arc_length': path following needs a load"):
+        run_raw(raw, shared_tmp)
