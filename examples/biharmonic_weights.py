@@ -3,7 +3,7 @@
     .venv/bin/python examples/biharmonic_weights.py [--cells N] [--handles x0,y0 x1,y1 ...]
 
 The weights the skinning seed uses to spread a few optimised rotation angles to every element
-(shared/seeds/mixed-fem-skinning-sgi.txt, section 1.3: theta = sum_j W_ij theta_j); model.fields.biharmonic.
+(Kassahun et al.'s skinning blog post, section 1.3: theta = sum_j W_ij theta_j); model.fields.biharmonic.
 Prints, per variant, the range of the weights, the partition-of-unity error and the handle values.
 """
 

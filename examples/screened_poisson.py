@@ -2,7 +2,7 @@
 
     .venv/bin/python examples/screened_poisson.py [--cells N] [--degree K] [--alpha A]
 
-The skinning seed's first problem (shared/seeds/mixed-fem-skinning-sgi.txt): the energy
+The skinning seed's first problem (Kassahun et al.'s skinning blog post): the energy
 E(u) = 1/2 int |grad u|^2 + 1/2 int alpha u^2 - int f u minimised directly, and as the saddle point of
 L(g, u, lambda) = 1/2 int |g|^2 + 1/2 int alpha u^2 - int f u + int lambda . (grad u - g) (forms.poisson).
 With f = (d pi^2 + alpha) cos(pi x) cos(pi y) [cos(pi z)] the exact solution is the cosine product; the

@@ -1,4 +1,4 @@
-"""The four isotropic hyperelastic laws of shared/design/energies.md.
+"""The four isotropic hyperelastic laws of docs/laws.md.
 
 | name            | psi(F)                                                         |
 |-----------------|----------------------------------------------------------------|

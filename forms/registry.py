@@ -7,7 +7,7 @@
     laws_markdown()                           "## Laws and their parameters" for docs/config.md
 
 forms.LAWS (name -> Law class), forms.FIELDS (name -> fields) and forms.make_law are derived from
-REGISTRY, so there is one list of laws. Formulas are those of shared/design/energies.md.
+REGISTRY, so there is one list of laws. Formulas are those of docs/laws.md.
 """
 
 from __future__ import annotations
@@ -220,7 +220,7 @@ def resolve_law(spec: str, base: Path | str | None = None) -> LawEntry:
 
 
 INTRO = ("Every law is a strain-energy density psi(F) per unit reference volume (Pa = J/m^3), written "
-         "as in shared/design/energies.md; UFL derives the stress and the tangent. Each splits as "
+         "as in docs/laws.md; UFL derives the stress and the tangent. Each splits as "
          "psi = W + (kappa/2) g(F)^2 for the mixed (Taylor-Hood) formulation; its bulk parameter = inf "
          "is exact incompressibility, which only the mixed formulation accepts. A law of your own: "
          "`law = \"FILE.py:FUNCTION\"` (forms/user_law.py), with a volumetric term (kappa/2) g^2, "

@@ -13,7 +13,8 @@
 # %% [markdown]
 # # Biharmonic weights: spreading a few handles' values to every element
 #
-# The skinning seed (`shared/seeds/mixed-fem-skinning-sgi.txt`, section 1.3) optimises rotation
+# The skinning blog post (Kassahun et al., "Automatic Skinning Transformations using Mixed Finite Elements",
+# section 1.3) optimises rotation
 # angles at a few sample points only and spreads them to every triangle with biharmonic weights,
 # $\theta_i = \sum_j W_{ij} \theta_j$. Weight $w_j$ minimises $\tfrac12\int (\Delta w)^2$ with
 # $w_j = 1$ at handle $j$ and 0 at the others (`model.fields.biharmonic`):

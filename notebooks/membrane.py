@@ -13,7 +13,7 @@
 # %% [markdown]
 # # Membranes: a balloon, Hencky's disc, the inflation of a patch, contact with bones
 #
-# The thesis (`shared/seeds/turchet-thesis-musculoskeletal.txt`, sec. 3.3.3.1) builds muscles by inflating
+# Turchet's thesis (Bournemouth University, 2018, sec. 3.3.3.1) builds muscles by inflating
 # triangle patches: a 3x2 surface deformation gradient $F$ per triangle, the plane-stress St Venant-Kirchhoff
 # membrane $w = h(\mu\, E{:}E + \tfrac{\lambda'}{2}(\operatorname{tr}E)^2)$ with $E = (F^TF - I)/2$ and
 # $\lambda' = E\nu/(1-\nu^2)$, and a pressure on the deformed surface. `forms/membrane.py` writes it in UFL

@@ -13,7 +13,8 @@
 # %% [markdown]
 # # ARAP in mixed form: the gingerbread man, and shape targeting in 3D
 #
-# The skinning seed (`shared/seeds/mixed-fem-skinning-sgi.txt`, "Mixed FEM" and "ARAP") makes the stretch
+# The skinning blog post (Kassahun et al., "Automatic Skinning Transformations using Mixed Finite Elements",
+# "Mixed FEM" and "ARAP") makes the stretch
 # $S$ of every triangle an unknown of its own, tied to the deformation gradient by $F = R S$:
 #
 # $$L(u, S, R, \Lambda) = \int \mu \|S - S_t\|^2 + \Lambda : (F - R S)\,dx

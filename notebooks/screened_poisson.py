@@ -13,7 +13,8 @@
 # %% [markdown]
 # # Screened Poisson, standard and mixed: the skinning seed's first step
 #
-# The skinning seed (`shared/seeds/mixed-fem-skinning-sgi.txt`) starts from the screened Poisson
+# The skinning blog post (Kassahun et al., "Automatic Skinning Transformations using Mixed Finite Elements")
+# starts from the screened Poisson
 # problem: minimise
 #
 # $$E(u) = \tfrac12 \int_\Omega |\nabla u|^2 + \tfrac12 \int_\Omega \alpha u^2 - \int_\Omega f u,$$

@@ -1,6 +1,6 @@
 """Every kind of configuration error stops the run before any solve with a one-line ConfigError naming the key.
 
-The contract (shared/design/run-contract.md): "an unknown key, a wrong type, a
+The contract (docs/configuration.md): "an unknown key, a wrong type, a
 missing region or boundary name, or a value out of range stops the run with a
 one-line error that names the key". Messages read ``KEY: explanation``. Pure
 configuration errors come from model.config.parse; names that need the mesh

@@ -1,7 +1,7 @@
 """The whole configuration file: RunConfig (its sections and the checks across them), parse, load, read.
 
-The layout is shared/design/run-contract.md. Any error (unknown key, wrong type, value out of range,
-unknown name) raises ConfigError with a one-line message that starts with the offending key, e.g.
+The layout is the project's run contract (docs/configuration.md). Any error (unknown key, wrong type, value out of
+range, unknown name) raises ConfigError with a one-line message that starts with the offending key, e.g.
 ``material[0].nu: 0.5 is out of range, must be in (-1, 0.5)``. Names of regions and boundaries are
 checked against the mesh later (model.pipeline.build), still before any solve.
 """

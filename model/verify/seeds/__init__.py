@@ -1,6 +1,6 @@
 """``verify seeds``: the formulas printed in the seed documents, transcribed as printed, against the UFL reference.
 
-Contract: shared/design/verification.md. Each formula is a numpy transcription of what the
+Each formula is a numpy transcription of what the
 seed prints (the notation decisions are in each function's docstring), evaluated at the verify
 samples (``deformation_samples(SAMPLES, SEED)``: identity, rotations, repeated singular values,
 large stretches, nearly flat elements, random F; ``field_samples`` for S) and compared with
@@ -9,7 +9,10 @@ through the project's UFL forms (``ReferenceEvaluator``), at rtol 1e-8. A disagr
 finding: the row says what is wrong, and a ``-corrected`` row implements the corrected formula
 and shows it agrees.
 
-Seeds (shared/seeds/):
+Seeds: Klár, Moffat, Museth and Sifakis, "Shape Targeting: A Versatile Active Elasticity Constitutive Model"
+(SIGGRAPH Talks 2020; klar); Turchet, "Physics-based Modelling, Simulation, Placement and Learning for Musculo-Skeletal
+Animations" (EngD thesis, Bournemouth University, 2018; thesis); Kassahun, Kachkovski, Song and Monem, "Automatic
+Skinning Transformations using Mixed Finite Elements" (a Summer Geometry Initiative research blog post; sgi):
 
 - shape-targeting-klar-2020.txt, eqs. 1-6 -> law ``shape_target`` (mu, field S = S_t);
 - turchet-thesis-musculoskeletal.txt, eqs. 4.3, 4.11, 4.12 (section 4.3.3), appendix C.15, C.16,

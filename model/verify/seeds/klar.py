@@ -1,4 +1,4 @@
-"""Klar et al. 2020, shape targeting (shared/seeds/shape-targeting-klar-2020.txt): eqs. 1-6 as printed.
+"""Klar et al. 2020, shape targeting (SIGGRAPH Talks 2020): eqs. 1-6 as printed.
 
 Law ``shape_target`` (mu, field S = S_t). Rows: klar-eq1, klar-eq2, klar-eq3, klar-eq4-6 (positive-det F),
 klar-psd (the PSD projection the paper describes, checked independently: optimality certificate and random

@@ -1,4 +1,5 @@
-"""The skinning seed (shared/seeds/mixed-fem-skinning-sgi.txt), "Screened Poisson Equation" and "Mixed FEM":
+"""The skinning blog post (Kassahun et al., "Automatic Skinning Transformations using Mixed Finite Elements"),
+"Screened Poisson Equation" and "Mixed FEM":
 the screened Poisson energy, its discrete standard and KKT systems and the stationarity conditions as printed.
 
 The discrete operators are assembled by dolfinx on a small triangle mesh (COMM_SELF): the gradient matrix G

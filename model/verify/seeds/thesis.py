@@ -1,4 +1,4 @@
-"""Turchet's thesis (shared/seeds/turchet-thesis-musculoskeletal.txt): the formulas as printed.
+"""Turchet's thesis (Bournemouth University, 2018): the formulas as printed.
 
 - eqs. 4.3, 4.11, 4.12 (section 4.3.3), appendix C.15, C.16, C.22 -> law ``stvk``; the thesis' Lame
   constants mu, lambda (defined from Y, nu right after eq. 4.3, the same formulas as energies.md) are the
