@@ -217,6 +217,7 @@ class ElasticityProblem:
         self.dirichlet: list[DirichletBoundary] = []
         self.load_hooks: list[Callable[[float], None]] = []
         self._forms: tuple[compat.Form, compat.Form] | None = None
+        self._unit_load: tuple[Any, compat.Form] | None = None
 
     # --- set-up ---------------------------------------------------------------------------------
 
@@ -431,6 +432,25 @@ class ElasticityProblem:
             jacobian = ufl.derivative(residual, self.solution, ufl.TrialFunction(self.space))
             self._forms = (fem.form(residual), fem.form(jacobian))
         return self._forms
+
+    def unit_load_form(self) -> compat.Form | None:
+        """f(u; v), the loads at load factor 1 (dead tractions, follower pressures, body forces) compiled: the
+        residual is R(u, lambda) = internal(u; v) - lambda f(u; v). None without loads. Compiled once per set of
+        loads (kept with the external form it came from)."""
+        if isinstance(self.external, int):
+            return None
+        if self._unit_load is None or self._unit_load[0] is not self.external:
+            one = fem.Constant(self.domain.mesh, PETSc.ScalarType(1.0))
+            self._unit_load = (self.external, fem.form(ufl.replace(self.external, {self.load_factor: one})))
+        return self._unit_load[1]
+
+    def zero_dirichlet_rows(self, vec: PETSc.Vec) -> None:
+        """Set the entries of the owned Dirichlet dofs of a vector in the solution's layout to 0."""
+        owned = vec.getLocalSize()
+        array = vec.array
+        for entry in self.dirichlet:
+            for dofs in entry.dofs:
+                array[dofs[dofs < owned]] = 0.0
 
     @property
     def bcs(self) -> list[compat.DirichletBC]:

@@ -88,17 +88,12 @@ class PathFollower:
         self.problem = problem
         self.control = control
         self.comm = problem.domain.mesh.comm
-        one = fem.Constant(problem.domain.mesh, PETSc.ScalarType(1.0))
-        if isinstance(problem.external, int):
+        self._load_form = problem.unit_load_form()
+        if self._load_form is None:
             raise ValueError("path following needs a load (a traction, pressure or body force): there is none")
-        self._load_form = fem.form(ufl.replace(problem.external, {problem.load_factor: one}))
         self.x = compat.petsc_vector(problem.solution).copy()
         self.R, self.f, self.a, self.b, self.c = (self.x.duplicate() for _ in range(5))
         owned = problem.space.dofmap.index_map.size_local * problem.space.dofmap.index_map_bs
-        self._constrained = np.zeros(owned, dtype=bool)
-        for entry in problem.dirichlet:
-            for dofs in entry.dofs:
-                self._constrained[dofs[dofs < owned]] = True
         #: 1 on the free displacement dofs, 0 on the pressure and the constrained dofs (the arc length's norm)
         self.mask = self.x.duplicate()
         mask = np.zeros(owned)
@@ -108,8 +103,8 @@ class PathFollower:
             mask[parent[parent < owned]] = 1.0
         else:
             mask[:] = 1.0
-        mask[self._constrained] = 0.0
         self.mask.array[:] = mask
+        problem.zero_dirichlet_rows(self.mask)
         self.boundary = boundary
         self.ratio = ratio
         if control == "volume":
@@ -129,9 +124,6 @@ class PathFollower:
 
     # --- pieces ------------------------------------------------------------------------------
 
-    def _zero_constrained(self, vec: PETSc.Vec) -> None:
-        vec.array[self._constrained] = 0.0
-
     def volume(self) -> float:
         """The cavity volume V(u) at the current solution (collective)."""
         self.problem.update_state()
@@ -142,7 +134,7 @@ class PathFollower:
             local.set(0.0)
         fem_petsc.assemble_vector(out, form)
         out.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self._zero_constrained(out)
+        self.problem.zero_dirichlet_rows(out)
 
     def _linearise(self, lam: float) -> None:
         """At (self.x, lam): R, K (in the solver's matrix), f; then a = K^-1 R and b = K^-1 f."""

@@ -27,8 +27,6 @@ import math
 from typing import Any
 
 import numpy as np
-import ufl
-from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -95,21 +93,13 @@ def inertia(solver: Any) -> tuple[int, int, int]:
 
 def _load_vector(problem: Any) -> PETSc.Vec | None:
     """f = the loads at load factor 1 at the current state (Dirichlet rows 0), or None without loads."""
-    if isinstance(problem.external, int):
+    form = problem.unit_load_form()
+    if form is None:
         return None
-    one = fem.Constant(problem.domain.mesh, PETSc.ScalarType(1.0))
-    form = fem.form(ufl.replace(problem.external, {problem.load_factor: one}))
     f = fem_petsc.assemble_vector(form)
     f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    _zero_rows(f, problem)
+    problem.zero_dirichlet_rows(f)
     return f
-
-
-def _zero_rows(vec: PETSc.Vec, problem: Any) -> None:
-    owned = vec.getLocalSize()
-    for entry in problem.dirichlet:
-        for dofs in entry.dofs:
-            vec.array[dofs[dofs < owned]] = 0.0
 
 
 def _stiffness_along_load(solver: Any) -> float | None:
