@@ -63,6 +63,7 @@ from model.fields.targets import TargetField
 from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
 from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
+from model.problem.conflicts import Condition, Load, check_conditions
 from model.problem.measurements import Volumes, reactions
 from model.solvers import linear, stability
 from model.solvers.loadstepping import continuation, step_loads
@@ -260,7 +261,10 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
         problem.cell_fields["activation"] = activation.function
     bones = {b.name: b for b in config.bones}
     sliding = []
+    conditions: list[Condition] = []  # the Dirichlet conditions and loads by key: check_conditions
+    loads: list[Load] = []
     for i, b in enumerate(config.boundaries):
+        before = len(problem.dirichlet)
         if b.type == "attached":
             from model.problem.bones import attach
 
@@ -284,8 +288,13 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
                 raise ConfigError(f"boundary[{i}].points[{j}]: {err}") from None
         elif b.type == "traction":
             problem.add_traction(b.on, b.value)
+            loads.append(Load(f"boundary[{i}]", b.on, tuple(b.value)))
         else:
             problem.add_pressure(b.on, b.value[0])
+            loads.append(Load(f"boundary[{i}]", b.on, None))
+        conditions += [Condition(f"boundary[{i}]", entry, not getattr(b, "points", ()))
+                       for entry in problem.dirichlet[before:]]
+    check_conditions(problem, conditions, loads)  # two values for one dof, a load a condition drops: one line
     for f in config.body_forces:
         problem.add_body_force(f.region, f.value)
     contacts = []
@@ -387,7 +396,7 @@ class RunResult:
 
 
 def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[Any] | None = None,
-                objective: bool | None = None) -> Any:
+                objective: bool | None = None, scaled: dict[str, float] | None = None) -> Any:
     """The solver [solver] asks for: NewtonSolver (exact or projected tangent), ProjectiveDynamicsSolver,
     or, with contacts, model.solvers.contact's VI / Uzawa solvers (same interface). The line search is
     NewtonSolver's default (bt on the total potential where the problem has one, else basic:
@@ -397,7 +406,9 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
     Newton's linear solver is the preset ``solver.linear`` resolves to for this problem's size and formulation
     (model.solvers.linear.resolve; ConfigError before any solve for a preset or fieldsplit options the problem
     cannot take), its options under ``petsc_options`` (the user's win). The choice is the solver's
-    ``linear_choice``.
+    ``linear_choice``. ``scaled``: the options with a unit set for this body (the run's
+    ScaleCheck.newton_options: snes_atol relative to its force scale, the line search's largest step relative to
+    its size), below the user's.
     """
     solver = config.solver
     if solver.method == "projective_dynamics":
@@ -408,13 +419,14 @@ def make_solver(problem: ElasticityProblem, config: RunConfig, contacts: list[An
         return ProjectiveDynamicsSolver(problem, options)
     vi = _vi(config)
     choice = linear.resolve(problem, solver.linear, config.petsc_options, vi=vi)
+    defaults = {**choice.options, **(scaled or {})}
     if contacts:
         from model.solvers.contact import make_contact_solver
 
         made = make_contact_solver(problem, contacts, config.petsc_options, tangent=solver.tangent,
-                                   defaults=choice.options, objective=objective, matrix=solver.matrix)
+                                   defaults=defaults, objective=objective, matrix=solver.matrix)
     else:
-        made = NewtonSolver(problem, config.petsc_options, tangent=solver.tangent, defaults=choice.options,
+        made = NewtonSolver(problem, config.petsc_options, tangent=solver.tangent, defaults=defaults,
                             objective=objective, matrix=solver.matrix)
     made.linear_choice = choice
     log.info("linear solver: %s (%s asked, %d dofs)", choice.preset, choice.requested, choice.dofs)
@@ -605,7 +617,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     if dynamic and config.dynamics.initial == "equilibrium" and earlier is None:
         _initial_equilibrium(setup, config)
     dynamics = _dynamics(setup, config) if dynamic else None
-    solver = make_solver(problem, config, setup.contacts, objective=objective)
+    solver = make_solver(problem, config, setup.contacts, objective=objective,
+                         scaled=scale.newton_options(setup.domain.mesh.geometry.dim))
     checkpoint = earlier["checkpoint"] if earlier is not None else None
     writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png,
                           stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"),
@@ -783,7 +796,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
                                                             if loading.control == "volume" else {})}
         save()
         stepping = lambda: follow_path(  # noqa: E731
-            follower, loading.steps, loading.max_steps, loading.max_cutbacks, loading.growth,
+            follower, loading.steps, loading.step_cap, loading.max_cutbacks, loading.growth,
             lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds, **rec.control},
                                     rec.next_increment))
     else:
@@ -792,7 +805,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         stepping = lambda: step_loads(  # noqa: E731
             solver, config.loading.steps, config.loading.max_cutbacks, config.loading.growth,
             lambda rec: record_step(rec.load_factor, rec.result, {"solve_time_s": rec.seconds}, rec.next_increment),
-            increment=increment, diagnose=lambda state: stability.diagnose(newton_of(solver), state))
+            increment=increment, diagnose=lambda state: stability.diagnose(newton_of(solver), state),
+            max_attempts=max(1, config.loading.step_cap - len(summary["steps"])))  # a restart's earlier steps count
     if checkpoint is not None:
         problem.solution.x.array[:] = restored["solution"].x.array
         for i, c in enumerate(setup.contacts):

@@ -29,8 +29,10 @@ class LoadingConfig(Section):
         "factor is an unknown, the path is followed past load maxima with Crisfield's arc length until it reaches "
         "1), \"volume\" (the cavity volume of volume_boundary is prescribed, its pressure is the unknown)",
         default="load")
-    max_steps: Annotated[Integer, Field(ge=1, le=100_000)] = key(
-        "control = \"arc_length\": the most steps the path may take before it stops", default=200)
+    max_steps: Annotated[Integer, Field(ge=1, le=1_000_000)] | None = key(
+        "the most steps (converged and failed) the run may take before it stops as failed (bounded work: "
+        "cut-backs and regrowth cannot go on for ever); default: 200 with control = \"arc_length\", "
+        "10 x steps + 100 otherwise", default=None)
     volume_boundary: Text | None = key(
         "control = \"volume\": the boundary with the pressure whose cavity volume is prescribed", default=None)
     volume_ratio: Annotated[Number, Field(gt=0)] | None = key(
@@ -38,3 +40,10 @@ class LoadingConfig(Section):
     volume_origin: Point = key(
         "control = \"volume\": a point on the planes that close the cavity (symmetry planes, a base plane): "
         "V = -(1/3) int (x - origin) . n da over volume_boundary", "length", default=(0.0, 0.0, 0.0))
+
+    @property
+    def step_cap(self) -> int:
+        """max_steps, or its default: 200 steps of arc length, 10 x steps + 100 otherwise."""
+        if self.max_steps is not None:
+            return self.max_steps
+        return 200 if self.control == "arc_length" else 10 * self.steps + 100

@@ -115,6 +115,7 @@ class DirichletBoundary:
     components: tuple[int, ...]
     bcs: list[compat.DirichletBC] = field(default_factory=list)
     dofs: list[np.ndarray] = field(default_factory=list)  # local indices in the solution vector
+    collapsed: list[np.ndarray] = field(default_factory=list)  # the same dofs in the component's collapsed space
     values: list[fem.Function] = field(default_factory=list)
     reference: list[np.ndarray] = field(default_factory=list)
     #: per component: f(x, t) evaluated at t = load factor (not scaled), or None (value scaled by t)
@@ -306,6 +307,7 @@ class ElasticityProblem:
             entry.reference.append(g.x.array.copy())
             entry.values.append(g)
             entry.dofs.append(dofs[0])
+            entry.collapsed.append(dofs[1])
             entry.bcs.append(fem.dirichletbc(g, dofs, sub))
         self.dirichlet.append(entry)
         self._forms = None

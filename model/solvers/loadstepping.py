@@ -5,8 +5,9 @@ the solution is restored to the last converged state and the step that failed is
 next attempt always aims lower, also when the end of the range had shortened that step); after a
 converged step the increment grows by ``growth`` again, never beyond d.
 The run gives up after ``max_cutbacks`` failures in a row, or when the increment falls below
-d / 2^max_cutbacks (so that alternating failures and successes cannot crawl on forever); the
-returned Outcome is false then and says which of the two happened and which keys change it.
+d / 2^max_cutbacks (so that alternating failures and successes cannot crawl on forever), or after
+``max_attempts`` solves in all (loading.max_steps: bounded work, whatever the two rules allow); the
+returned Outcome is false then and says which of these happened and which keys change it.
 """
 
 from __future__ import annotations
@@ -70,6 +71,9 @@ def cause_of(result: SolveResult) -> tuple[str, bool]:
     """(what the last failed solve says about the cause, whether more cut-backs can help) for the give-up message:
     a linear solver failure, folded cells (with min det F and where), a NaN residual (with where it is largest)."""
     name = result.reason_name
+    failure = getattr(result, "linear_failure", None)
+    if failure:  # what MUMPS says: out of memory, a singular matrix
+        return failure["message"], False
     if name == "DIVERGED_LINEAR_SOLVE":
         return LINEAR_ADVICE, False
     fold = (result.admissibility or {}).get("folded_trial")
@@ -101,7 +105,8 @@ class StepRecord:
 def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: int, max_cutbacks: int = 8,
                  growth: float = 1.5, on_step: Callable[[StepRecord], None] | None = None, start: float = 0.0,
                  what: str = "load step", step_key: str = "loading.steps", increment: float | None = None,
-                 diagnose: Callable[[np.ndarray | None], dict[str, Any] | None] | None = None) -> Outcome:
+                 diagnose: Callable[[np.ndarray | None], dict[str, Any] | None] | None = None,
+                 max_attempts: int | None = None) -> Outcome:
     """Drive a parameter s from ``start`` to 1 in increments of 1/steps, ``apply(s)`` setting it on the problem
     before each solve; a failed solve restores the last converged state and halves the increment that failed,
     a converged one grows the increment by ``growth`` (up to 1/steps). A true Outcome when s got to 1, else
@@ -110,13 +115,24 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
     gives up (at the last converged state, with the last failed iterate's solution array when that step was at most
     a quarter of the nominal increment, else None): a stability report
     (model.solvers.stability.diagnose) whose "message", when the structure is unstable, replaces the cut-back
-    advice, which cannot help there."""
+    advice, which cannot help there. ``max_attempts``: the most solves (converged and failed) before it gives up
+    (loading.max_steps; None: no cap beyond the cut-back rules)."""
     problem = solver.problem
     nominal = 1.0 / steps
+    attempts = 0
     increment = nominal if increment is None else float(increment)
     current = start
     cutbacks = 0
     while current < 1.0 - 1e-12:
+        if max_attempts is not None and attempts >= max_attempts:
+            reason = (f"{what}s: {attempts} solves (loading.max_steps) without reaching 1; stopped "
+                      f"at {current:.6g} with an increment of {increment:.3g} ({step_key} gives {nominal:.3g}): "
+                      "cut-backs and regrowth alternate here; raise loading.max_steps, or loading.steps for smaller "
+                      "increments from the start")
+            if _rank0(problem):
+                log.error("giving up: %s", reason)
+            return Outcome(False, reason)
+        attempts += 1
         target = min(current + increment, 1.0)
         if 1.0 - target < 1e-9:
             target = 1.0
@@ -142,6 +158,12 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
         increment = 0.5 * (target - current)  # half the step that failed (which the end may have shortened)
         reason = give_up_reason(what, target, current, f"{result.reason}, {result.reason_name}", cutbacks,
                                 increment, nominal, max_cutbacks, step_key)
+        if (getattr(result, "linear_failure", None) or {}).get("memory"):  # the same matrix at any load: no cut-back
+            reason = (f"{what} to {target:.6g} failed (SNES reason {result.reason}, {result.reason_name}); stopped "
+                      f"at {current:.6g}: {result.linear_failure['message']}")
+            if _rank0(problem):
+                log.error("giving up: %s", reason)
+            return Outcome(False, reason)
         rank0 = _rank0(problem)
         if reason is not None:
             report = diagnose(failed_state) if diagnose is not None else None
@@ -167,10 +189,11 @@ def continuation(solver: NewtonSolver, apply: Callable[[float], None], steps: in
 
 def step_loads(solver: NewtonSolver, steps: int, max_cutbacks: int = 8, growth: float = 1.5,
                on_step: Callable[[StepRecord], None] | None = None, increment: float | None = None,
-               diagnose: Callable[[np.ndarray | None], dict[str, Any] | None] | None = None) -> Outcome:
+               diagnose: Callable[[np.ndarray | None], dict[str, Any] | None] | None = None,
+               max_attempts: int | None = None) -> Outcome:
     """Drive the load factor of solver.problem from its current value to 1 (continuation with
     apply = problem.set_load_factor, first increment ``increment``); a true Outcome when it got there, else one
     whose ``reason`` says why it gave up."""
     problem = solver.problem
     return continuation(solver, problem.set_load_factor, steps, max_cutbacks, growth, on_step,
-                        start=float(problem.time), increment=increment, diagnose=diagnose)
+                        start=float(problem.time), increment=increment, diagnose=diagnose, max_attempts=max_attempts)

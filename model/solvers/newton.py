@@ -167,6 +167,51 @@ class SolveResult:
     #: the state's det F report (Admissibility.report: min_det_F, per region, where) and how many Newton directions
     #: the admissibility limit shortened ("limited_steps")
     admissibility: dict[str, Any] | None = None
+    #: a DIVERGED_LINEAR_SOLVE that MUMPS explains (mumps_failure): {"solver", "infog", "memory", "message"}
+    linear_failure: dict[str, Any] | None = None
+
+
+#: MUMPS's INFOG(1) codes of a factorisation that ran out of memory (MUMPS 5 users' guide, section "Error
+#: diagnostics"), and what helps
+MUMPS_MEMORY = {
+    -8: "its integer workspace was too small: raise mat_mumps_icntl_14 (extra workspace, percent)",
+    -9: "its real workspace was too small: raise mat_mumps_icntl_14 (extra workspace, percent)",
+    -11: "its real workspace for the solve was too small: raise mat_mumps_icntl_14 (extra workspace, percent)",
+    -13: "an allocation failed: the machine is out of memory",
+    -14: "its integer workspace for the solve was too small: raise mat_mumps_icntl_14",
+    -15: "an integer overflow in its workspace: use more ranks",
+    -17: "an internal send buffer was too small: raise mat_mumps_icntl_14",
+    -19: "the memory limit mat_mumps_icntl_23 (MB per rank) is too small",
+    -20: "an internal receive buffer was too small: raise mat_mumps_icntl_14",
+}
+MEMORY_ADVICE = ("smaller load steps cannot help: [solver] linear = \"iterative\" (far less memory), more memory "
+                 "or ranks, or a coarser mesh")
+
+
+def mumps_failure(ksp: PETSc.KSP) -> dict[str, Any] | None:
+    """What MUMPS says of a failed linear solve (its INFOG(1), INFOG(2)): {"solver": "MUMPS", "infog": [i1, i2],
+    "memory": whether it ran out of memory (MUMPS_MEMORY), "message"}; None where the preconditioner is not a
+    MUMPS factorisation or MUMPS reports no error. Collective (INFOG is global)."""
+    try:
+        pc = ksp.getPC()
+        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+            return None
+        factor = pc.getFactorMatrix()
+        info = [int(factor.getMumpsInfog(1)), int(factor.getMumpsInfog(2))]
+    except PETSc.Error:
+        return None
+    if info[0] >= 0:
+        return None
+    memory = info[0] in MUMPS_MEMORY
+    if memory:
+        message = (f"MUMPS ran out of memory in the factorisation (INFOG(1) = {info[0]}, INFOG(2) = {info[1]}: "
+                   f"{MUMPS_MEMORY[info[0]]}); {MEMORY_ADVICE}")
+    elif info[0] == -10:
+        message = ("MUMPS found the Newton matrix numerically singular (INFOG(1) = -10): a rigid motion that nothing "
+                   "holds, a zero modulus, or a limit point of the load")
+    else:
+        message = f"MUMPS failed (INFOG(1) = {info[0]}, INFOG(2) = {info[1]})"
+    return {"solver": "MUMPS", "infog": info, "memory": memory, "message": message}
 
 
 @dataclass(frozen=True)
@@ -592,6 +637,11 @@ class NewtonSolver:
                         admissibility["min_det_F_point"])
             reason = PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN
         where = self.residual_location() if reason <= 0 else None
+        linear_failure = None
+        if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
+            linear_failure = mumps_failure(self.snes.getKSP())
+            if linear_failure is not None and self.problem.domain.mesh.comm.rank == 0:
+                log.warning("%s", linear_failure["message"])
         return SolveResult(
             converged=reason > 0,
             reason=int(reason),
@@ -602,6 +652,7 @@ class NewtonSolver:
             where=str(where) if where is not None else "",
             largest_residual=where.as_dict() if where is not None else None,
             admissibility=admissibility,
+            linear_failure=linear_failure,
         )
 
     def residual_location(self) -> ResidualLocation | None:

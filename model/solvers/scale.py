@@ -86,6 +86,10 @@ from model.solvers import linear
 
 log = logging.getLogger(__name__)
 
+#: Newton's absolute tolerance per unit force scale (ScaleCheck.absolute_tolerance)
+ATOL_PER_FORCE = 1e-16
+#: the line search's largest step per unit body size (PETSc's default 1e8, absolute, at L = 1)
+MAXSTEP_PER_LENGTH = 1e8
 #: the first increment's strain above which the loads and moduli look inconsistent
 STRAIN_LIMIT = 0.5
 #: the fibre stretch the tangent is taken at (fibre directions scaled by 1 + FIBRE_STRETCH; module docstring)
@@ -126,6 +130,33 @@ class ScaleCheck:
     def figures(self) -> dict[str, Any]:
         return {"first_increment_strain": self.first_increment_strain, "method": self.method,
                 "body_size": self.body_size, "moduli": list(self.moduli), "time_s": self.seconds}
+
+    def newton_options(self, dimension: int) -> dict[str, float]:
+        """The PETSc options of Newton that carry a unit, set for this body: ``snes_atol`` (absolute_tolerance) and
+        ``snes_linesearch_maxstep`` = MAXSTEP_PER_LENGTH x L (PETSc's fixed 1e8 cut every Newton step of a body
+        1e12 m across to 1e8 m, so that 30 iterations did not converge at any load). Empty where no modulus or
+        size is known: PETSc's fixed values stay."""
+        options: dict[str, float] = {}
+        atol = self.absolute_tolerance(dimension)
+        if atol is not None:
+            options["snes_atol"] = atol
+            options["snes_linesearch_maxstep"] = MAXSTEP_PER_LENGTH * self.body_size
+        return options
+
+    def absolute_tolerance(self, dimension: int) -> float | None:
+        """Newton's absolute tolerance on |R| for this body: ATOL_PER_FORCE x the force scale
+
+            F_ref = max modulus x L^(d - 1)        (a force in 3D; per unit thickness in 2D)
+
+        so that a body 1e-12 m across solves like one 1 m across (a fixed snes_atol = 1e-12 exceeds the whole
+        residual of the small one, which then "converges" at u = 0 after 0 iterations, and is never reached by the
+        large one). ATOL_PER_FORCE = 1e-16 is the round-off of |R| at unit strain and gives the former fixed 1e-12
+        at F_ref = 1e4 (E = 1e4 Pa on a 1 m body). None (keep the fixed default) where no modulus is known."""
+        moduli = [m for m in self.moduli if math.isfinite(m) and m > 0]
+        if not moduli or not math.isfinite(self.body_size) or self.body_size <= 0:
+            return None
+        force = max(moduli) * self.body_size ** (dimension - 1)
+        return ATOL_PER_FORCE * force if math.isfinite(force) and force > 0 else None
 
 
 # --- what the configuration says ------------------------------------------------------------------------------------
