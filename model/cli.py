@@ -20,6 +20,8 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from model import signals
+
 
 def _configure_logging() -> None:
     # The JIT (ffcx -> setuptools) lowers the root logger to INFO and would print its compiler
@@ -41,6 +43,18 @@ def _error(message: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line. Installs the signal handlers first (model.signals) and puts the caller's back on return."""
+    previous = signals.install()
+    try:
+        return _main(argv)
+    except signals.StoppedEarly as err:  # before a run's steps: imports, configuration (model.signals)
+        _error(str(err))
+        return 128 + err.signum
+    finally:
+        signals.restore(previous)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(prog="python -m model", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     run_parser = sub.add_parser("run", help="run a TOML configuration")
@@ -84,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
     from model.config import load, read
     from model.config.membrane import is_membrane
     from model.errors import ConfigError, SolveFailed
-    from model.pipeline import Interrupted, run
+    from model.pipeline import run
+    from model.signals import Interrupted
 
     if args.command == "run":
         try:
