@@ -36,7 +36,7 @@ $(VENV)/.installed: pyproject.toml | system
 setup: system $(VENV)/.installed
 
 demo: setup
-	$(PY) -m model run examples/isometric.toml --out results/demo
+	$(VENV)/bin/softtissue run examples/isometric.toml --out results/demo
 	@echo "results and PNG in results/demo (deformed.png, results.xdmf, step_*.vtu, summary.json)"
 
 test-serial: setup

@@ -50,6 +50,7 @@ import inspect
 from collections.abc import Callable
 from typing import Any
 
+from meshes import _gmsh  # noqa: F401 - first: gmsh imported keeping Python's signal handlers (meshes._gmsh)
 from meshes._validate import ParameterError
 from meshes.arm_segment import arm_segment
 from meshes.blocks import stacked_blocks

@@ -4,6 +4,13 @@ gmsh is a process-wide singleton.  :func:`gmsh_session` initialises it only when
 nobody else has, always works in a fresh model, and on exit either finalises gmsh
 (if it initialised it) or removes its model and restores the options it changed
 (if the session belonged to somebody else).
+
+gmsh takes SIGINT over: importing gmsh 4.8 sets Python's SIGINT handler to SIG_DFL, and ``gmsh.finalize()``
+puts back the one of import time; gmsh 4.13's ``initialize`` sets SIG_DFL and ``finalize`` puts back the one it
+replaced. Either way a program's own handler (a run's clean stop on Ctrl-C) was gone, or an ignored SIGINT came
+back. So gmsh is imported here keeping Python's SIGINT and SIGTERM handlers, and a session keeps them across its
+``initialize`` and ``finalize``: Ctrl-C during gmsh's own work takes effect, through the program's handler, when
+the gmsh call returns. (meshes/__init__.py imports this module first, before any module that imports gmsh.)
 """
 
 from __future__ import annotations
@@ -11,16 +18,37 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+import signal
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from typing import Any
 
-import gmsh
 import numpy as np
 
 from meshes.topology import SLIVER_RADIUS_RATIO, radius_ratio
 
-__all__ = ["DEFAULT_OPTIONS", "MESH_ATTEMPTS", "generate_tetrahedra", "gmsh_is_initialized", "gmsh_session"]
+
+@contextmanager
+def keep_signal_handlers() -> Iterator[None]:
+    """Python's SIGINT and SIGTERM handlers after the body as they were before it (module docstring). Outside the
+    main thread, and for a handler Python did not install, nothing is put back."""
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in saved.items():
+            if handler is not None and signal.getsignal(s) != handler:
+                try:
+                    signal.signal(s, handler)
+                except ValueError:  # not the main thread
+                    pass
+
+
+with keep_signal_handlers():  # importing gmsh 4.8 sets SIGINT to SIG_DFL
+    import gmsh
+
+__all__ = ["DEFAULT_OPTIONS", "MESH_ATTEMPTS", "generate_tetrahedra", "gmsh_is_initialized", "gmsh_session",
+           "keep_signal_handlers"]
 
 logger = logging.getLogger(__name__)
 
@@ -92,7 +120,8 @@ def _set_options(options: Mapping[str, float]) -> None:
 
 @contextmanager
 def gmsh_session(options: Mapping[str, float] | None = None, name: str = "meshes") -> Iterator[str]:
-    """Run the body in a fresh, quiet gmsh model and clean up afterwards.
+    """Run the body in a fresh, quiet gmsh model and clean up afterwards; Python's SIGINT and SIGTERM handlers stay
+    as they were before the session, inside it and after it (module docstring).
 
     Parameters
     ----------
@@ -111,7 +140,8 @@ def gmsh_session(options: Mapping[str, float] | None = None, name: str = "meshes
     saved: dict[str, float] = {}
     previous_model = ""
     if owner:
-        gmsh.initialize(readConfigFiles=False)
+        with keep_signal_handlers():  # gmsh 4.13 sets SIGINT to SIG_DFL
+            gmsh.initialize(readConfigFiles=False)
         gmsh.option.setNumber("General.Terminal", 0)
     else:
         previous_model = gmsh.model.getCurrent()
@@ -124,7 +154,8 @@ def gmsh_session(options: Mapping[str, float] | None = None, name: str = "meshes
         yield model_name
     finally:
         if owner:
-            gmsh.finalize()
+            with keep_signal_handlers():  # gmsh puts back the SIGINT handler of its import or initialize
+                gmsh.finalize()
         else:
             if model_name in gmsh.model.list():
                 gmsh.model.setCurrent(model_name)

@@ -1,24 +1,80 @@
-"""Command line: ``python -m model run CONFIG [--out DIR] [--set KEY=VALUE ...] [--restart DIR]`` (a CONFIG with a
+"""Command line: ``softtissue run CONFIG [--out DIR] [--set KEY=VALUE ...] [--restart DIR]`` (a CONFIG with a
 [membrane] table is a membrane run: model.config.membrane, model.experiments.membrane_run),
-``python -m model verify emit|check|seeds|element``, ``python -m model sweep CONFIG --set KEY=V1,V2 --out DIR``
-(model.studies.commands), ``python -m model converge CONFIG --refine KEY=v1,v2,v3 --qoi ...``
-(model.studies.convergence_cli) and ``python -m model schema [--out FILE] [--markdown FILE] [--membrane-out FILE]``.
+``softtissue verify emit|check|seeds|element``, ``softtissue sweep CONFIG --set KEY=V1,V2 --out DIR``
+(model.studies.commands), ``softtissue converge CONFIG --refine KEY=v1,v2,v3 --qoi ...``
+(model.studies.convergence_cli), ``softtissue schema [--out FILE] [--markdown FILE] [--membrane-out FILE]`` and
+``softtissue --version``. ``python -m model ...`` is the same (model/__main__.py).
 
 Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input, 130 / 143
 interrupted by SIGINT / SIGTERM (results kept, summary.json "interrupted"; continue with --restart DIR).
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
 the table was produced (a disagreement is a finding, not a failure). sweep: 0 every run completed, 1 some
 failed (the table is written), 2 bad input. converge: 0 written, 1 fewer than 3 meshes ran, 2 bad input.
+Any command stopped by SIGINT / SIGTERM before its work began: 130 / 143 and one line (model.signals).
+
+Start-up order, for a quick answer to a bad input: the signal handlers first (model.signals: the imports take
+seconds); only the parser of the command given (verify's imports forms, UFL and mpi4py); for ``run`` the
+configuration is read, overridden and checked before mpi4py or dolfinx load (model.pipeline is imported after
+it), the MPI rank meanwhile taken from the launcher's environment.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from pathlib import Path
+from typing import Any
 
-from mpi4py import MPI
+from model import signals
+
+#: the project's distribution (pyproject.toml [project] name): --version
+DISTRIBUTION = "softtissue-reference"
+
+#: commands whose parsers are cheap to build; the others' import forms, UFL or mpi4py (``_parser``)
+_CHEAP = ("run", "schema")
+
+
+def _rank() -> int:
+    """This process's MPI rank: mpi4py's once MPI is up, before that the launcher's (Open MPI, PMIx, MPICH / PMI)
+    environment, so that a bad configuration is reported once without initialising MPI; 0 without a launcher."""
+    mpi = sys.modules.get("mpi4py.MPI")
+    if mpi is not None and mpi.Is_initialized():
+        return mpi.COMM_WORLD.rank
+    for name in ("OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"):
+        if os.environ.get(name, "").isdigit():
+            return int(os.environ[name])
+    return 0
+
+
+def version() -> str:
+    """The installed distribution's version (importlib.metadata); from pyproject.toml beside the package when it is
+    not installed (a checkout on PYTHONPATH)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version(DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        import tomllib
+
+        pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+        try:
+            return str(tomllib.loads(pyproject.read_text())["project"]["version"])
+        except (OSError, ValueError, KeyError):
+            return "unknown"
+
+
+class _Version(argparse.Action):
+    """``--version``: the version is looked up only when asked for."""
+
+    def __init__(self, option_strings: list[str], dest: str = argparse.SUPPRESS, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="print the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: Any, values: Any, option: Any = None) -> None:
+        print(f"{parser.prog} {version()} ({DISTRIBUTION})")
+        parser.exit()
 
 
 def _configure_logging() -> None:
@@ -31,17 +87,25 @@ def _configure_logging() -> None:
     handler.setFormatter(logging.Formatter("%(message)s"))
     logger = logging.getLogger("model")
     logger.handlers[:] = [handler]
-    logger.setLevel(logging.INFO if MPI.COMM_WORLD.rank == 0 else logging.ERROR)
+    logger.setLevel(logging.INFO if _rank() == 0 else logging.ERROR)
     logger.propagate = False
 
 
 def _error(message: str) -> None:
-    if MPI.COMM_WORLD.rank == 0:
+    if _rank() == 0:
         print(f"error: {message}", file=sys.stderr)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m model", description=__doc__.splitlines()[0])
+def _command(argv: list[str]) -> str | None:
+    """The command word of ``argv`` (its first word that is not an option), None without one."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def _parser(prog: str, command: str | None) -> argparse.ArgumentParser:
+    """The top-level parser. For ``run`` and ``schema`` (and a bare ``--version``) only their own parsers: verify's,
+    sweep's and converge's import forms, UFL or mpi4py, a second and more that a bad configuration need not wait."""
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True)
     run_parser = sub.add_parser("run", help="run a TOML configuration")
     run_parser.add_argument("config", type=Path)
@@ -51,15 +115,16 @@ def main(argv: list[str] | None = None) -> int:
                                  "loading.steps=20, 'boundary.0.value=[0.1]'); repeatable")
     run_parser.add_argument("--restart", type=Path, default=None, metavar="DIR",
                             help="continue the interrupted run in DIR from its last converged step (appends there)")
-    from model.verify.commands import add_parser as add_verify_parser
+    if command not in _CHEAP:
+        from model.verify.commands import add_parser as add_verify_parser
 
-    add_verify_parser(sub)
-    from model.studies.commands import add_parser as add_sweep_parser
+        add_verify_parser(sub)
+        from model.studies.commands import add_parser as add_sweep_parser
 
-    add_sweep_parser(sub)
-    from model.studies.convergence_cli import add_parser as add_converge_parser
+        add_sweep_parser(sub)
+        from model.studies.convergence_cli import add_parser as add_converge_parser
 
-    add_converge_parser(sub)
+        add_converge_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
                                    "generated from model.config")
     schema_parser.add_argument("--out", type=Path, default=None,
@@ -69,7 +134,25 @@ def main(argv: list[str] | None = None) -> int:
                                help="write the Markdown reference of every key here (docs/config.md)")
     schema_parser.add_argument("--membrane-out", type=Path, default=None,
                                help="write the JSON Schema of a membrane run's file here (docs/membrane.schema.json)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = "softtissue") -> int:
+    """The command line (the ``softtissue`` console script; ``python -m model``). Installs the signal handlers
+    first (model.signals) and puts the caller's back on return."""
+    previous = signals.install()
+    try:
+        return _main(sys.argv[1:] if argv is None else list(argv), prog)
+    except signals.StoppedEarly as err:  # before a run's steps: imports, configuration (model.signals)
+        _error(str(err))
+        return 128 + err.signum
+    finally:
+        signals.restore(previous)
+
+
+def _main(argv: list[str], prog: str) -> int:
+    command = _command(argv)
+    args = _parser(prog, command if command is not None or "--version" not in argv else "run").parse_args(argv)
     if args.command == "schema":
         return _schema(args)
     _configure_logging()
@@ -83,37 +166,37 @@ def main(argv: list[str] | None = None) -> int:
         return sweep_main(args)
     from model.config import load, read
     from model.config.membrane import is_membrane
+    from model.config.overrides import parse_assignments
     from model.errors import ConfigError, SolveFailed
-    from model.pipeline import Interrupted, run
+    from model.signals import Interrupted
 
-    if args.command == "run":
-        try:
-            from model.config.overrides import parse_assignments
+    try:
+        if args.restart is not None and args.out is not None and args.out.resolve() != args.restart.resolve():
+            raise ConfigError(f"--restart {args.restart} and --out {args.out}: a restart writes into the folder "
+                              "it continues; give one of them")
+        overrides = parse_assignments(args.overrides)
+        if is_membrane(read(args.config)):  # a [membrane] table: a membrane run (model.config.membrane)
+            return _membrane(args, overrides)
+        config = load(args.config, overrides)
+        from model.pipeline import run  # dolfinx, PETSc, MPI: only for a configuration that is checked
 
-            if args.restart is not None and args.out is not None and args.out.resolve() != args.restart.resolve():
-                raise ConfigError(f"--restart {args.restart} and --out {args.out}: a restart writes into the folder "
-                                  "it continues; give one of them")
-            overrides = parse_assignments(args.overrides)
-            if is_membrane(read(args.config)):  # a [membrane] table: a membrane run (model.config.membrane)
-                return _membrane(args, overrides)
-            config = load(args.config, overrides)
-            if args.restart is not None:
-                summary = run(config, args.restart, restart=True)
-            else:
-                summary = run(config, args.out)
-        except Interrupted as err:
-            _error(str(err))
-            return 128 + err.signum
-        except ConfigError as err:
-            _error(str(err))
-            return 2
-        except SolveFailed as err:
-            _error(str(err))
-            return 1
-        if MPI.COMM_WORLD.rank == 0:
-            last = summary["steps"][-1]
-            print(f"done: {len(summary['steps'])} steps, {summary['dofs']} dofs, {summary['wall_time_s']:.1f} s; "
-                  f"probes {last.get('probes', {})}")
+        if args.restart is not None:
+            summary = run(config, args.restart, restart=True)
+        else:
+            summary = run(config, args.out)
+    except Interrupted as err:
+        _error(str(err))
+        return 128 + err.signum
+    except ConfigError as err:
+        _error(str(err))
+        return 2
+    except SolveFailed as err:
+        _error(str(err))
+        return 1
+    if _rank() == 0:
+        last = summary["steps"][-1]
+        print(f"done: {len(summary['steps'])} steps, {summary['dofs']} dofs, {summary['wall_time_s']:.1f} s; "
+              f"probes {last.get('probes', {})}")
     return 0
 
 
@@ -128,7 +211,7 @@ def _membrane(args: argparse.Namespace, overrides: dict) -> int:
         raise ConfigError("--restart: a membrane run has no restart (run it again)")
     config = load_membrane(args.config, overrides)
     summary = run_membrane(config, args.out)
-    if MPI.COMM_WORLD.rank == 0:
+    if _rank() == 0:
         last = summary["steps"][-1]
         print(f"done: membrane, {len(summary['steps'])} pressure steps, {summary['surface']['triangles']} "
               f"triangles, {summary['wall_time_s']:.1f} s; p {last['pressure']:.6g}, V {last['volume']:.6g}, "

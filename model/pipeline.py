@@ -25,6 +25,8 @@ rank checks collectively (an allreduce) after each attempted step, so all ranks 
 the step being solved when the signal came is finished and recorded, the outputs are complete (each
 step's XDMF part is closed when written), summary.json says status "interrupted" with "signal" and
 "last_completed_step", and run() raises Interrupted (the CLI exits 128 + the signal number: 130, 143).
+A signal before the first step is checked after build (the output folder is left as it was) and before the
+first step (summary.json "interrupted"); gmsh's hold on SIGINT and the command line's start-up: model.signals.
 After every converged step a checkpoint is written (model.output.checkpoint) and summary.json's
 "checkpoint" names it. ``run(config, DIR, restart=True)`` (``--restart DIR``) keeps the earlier run's
 files and summary steps up to that checkpoint, restores the state (solution, dynamics' u_n, v_n, a_n,
@@ -65,57 +67,13 @@ from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write
 from model.problem import ElasticityProblem
 from model.problem.conflicts import Condition, Load, check_conditions
 from model.problem.measurements import Volumes, reactions
+from model.signals import Interrupted, StopFlag
 from model.solvers import linear, stability
 from model.solvers.loadstepping import continuation, step_loads
 from model.solvers.newton import NewtonSolver, free_garbage
 from model.solvers.options import check_option_values
 
 log = logging.getLogger(__name__)
-
-
-class Interrupted(Exception):
-    """A run stopped by SIGINT or SIGTERM after the step it was solving (outputs closed, summary.json
-    "interrupted"). ``signum``: the signal; a command-line exit code is 128 + signum."""
-
-    def __init__(self, signum: int, message: str) -> None:
-        super().__init__(message)
-        self.signum = signum
-
-
-class _StopFlag:
-    """Catches SIGINT and SIGTERM while a run steps (in the main thread; elsewhere it never triggers): the
-    first sets the flag, a second SIGINT raises KeyboardInterrupt at once. ``check(comm)`` is collective:
-    the largest signal number any rank got (0: none)."""
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-    def __init__(self) -> None:
-        self.signum = 0
-        self.previous: dict[int, Any] = {}
-
-    def _handle(self, signum: int, frame: Any) -> None:
-        if self.signum and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        self.signum = signum
-
-    def __enter__(self) -> _StopFlag:
-        try:
-            for s in self.SIGNALS:
-                self.previous[s] = signal.signal(s, self._handle)
-        except ValueError:  # not the main thread: no handlers
-            pass
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        for s, handler in self.previous.items():
-            signal.signal(s, handler)
-
-    def check(self, comm: MPI.Comm) -> int:
-        return int(comm.allreduce(self.signum, op=MPI.MAX))
-
-
-#: the public name (model.experiments.membrane_run stops its pressure steps with it too)
-StopFlag = _StopFlag
 
 
 @dataclass
@@ -587,15 +545,23 @@ def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WO
     Raises ConfigError before any solve on bad input, SolveFailed (after writing
     the summary) when SNES fails beyond the allowed cut-backs, Interrupted after SIGINT or SIGTERM.
     """
-    with _StopFlag() as stop:
+    with StopFlag() as stop:
         return _run(config, out, comm, objective, restart, stop)
 
 
+def _stop_before_solve(stop: StopFlag, comm: MPI.Comm, when: str) -> None:
+    """Interrupted when a rank got SIGINT or SIGTERM so far (collective; model.signals)."""
+    signum = stop.check(comm)
+    if signum:
+        raise Interrupted(signum, f"interrupted by {signal.Signals(signum).name} {when}")
+
+
 def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | None, restart: bool,
-         stop: _StopFlag) -> dict[str, Any]:
+         stop: StopFlag) -> dict[str, Any]:
     start = time.perf_counter()
     directory = Path(out) if out is not None else config.output.dir
     setup = build(config, comm)
+    _stop_before_solve(stop, comm, "before the solve started; the output folder is as it was")  # model.signals
     check_option_values(config.petsc_options)  # values PETSc would refuse: before anything is deleted or solved
     versions, host = comm.bcast((compat.versions(), compat.host()) if comm.rank == 0 else None, root=0)
     if comm.rank == 0:
@@ -817,6 +783,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             log.info("restarted from step %d (load factor %.6g) of %s", checkpoint["step"], meta["load_factor"],
                      directory)
     try:
+        _stop_before_solve(stop, comm, "before the first step")  # summary.json "interrupted" (model.signals)
         ok = stepping()
     except Interrupted as err:
         summary["status"] = "interrupted"
@@ -829,8 +796,9 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             dynamics.destroy()
         free_garbage(msh.comm)
         if comm.rank == 0:
-            log.warning("%s: stopped after %d completed steps; summary.json says \"interrupted\"; continue with "
-                        "--restart %s", err, writer.count, directory)
+            then = f"continue with --restart {directory}" if saved_checkpoint else "no checkpoint: run it again"
+            log.warning("%s: stopped after %d completed steps; summary.json says \"interrupted\"; %s", err,
+                        writer.count, then)
         raise
     summary["status"] = "completed" if ok else "failed"
     if not ok:
