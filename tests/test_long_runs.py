@@ -314,6 +314,32 @@ def test_checkpoint_round_trip_mixed_space(shared_tmp: Path) -> None:
         read_checkpoint(shared_tmp, 4, {"solution": other})
 
 
+def test_checkpoint_keys_off_by_one_quantum_are_found(shared_tmp: Path) -> None:
+    """A dof whose coordinates come out one quantization step (1e-9 of the size) away from the saved key, as the
+    last bit of a coordinate computed from another cell can, is still found; two steps away it is not."""
+    v = fem.Function(compat.function_space(mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2), "Lagrange", 1, (3,)))
+    v.interpolate(_field)
+    v.x.scatter_forward()  # the ghosts' values as their owners' (interpolated on another cell, they may differ)
+    write_checkpoint(shared_tmp, 1, {"u_n": v}, {})
+    path = shared_tmp / "checkpoint_0001.npz"
+
+    def shift(by: list[int]) -> None:
+        if MPI.COMM_WORLD.rank == 0:
+            with np.load(path) as f:
+                data = {k: f[k] for k in f.files}
+            data["u_n.keys"][:, 2:] += np.array(by)
+            np.savez(path, **data)
+        MPI.COMM_WORLD.barrier()
+
+    shift([1, -1, 1])
+    back = fem.Function(v.function_space)
+    read_checkpoint(shared_tmp, 1, {"u_n": back})
+    np.testing.assert_array_equal(back.x.array, v.x.array)
+    shift([1, 0, 0])
+    with pytest.raises(ValueError, match="dofs of 'u_n' are not in the checkpoint"):
+        read_checkpoint(shared_tmp, 1, {"u_n": back})
+
+
 def test_xdmf_series_each_step_readable(shared_tmp: Path) -> None:
     """Steps written by XdmfSeries read back with meshio (rank 0) as the formula at the mesh points, also
     before the series is finished; a resumed series keeps the first steps and goes on."""
@@ -341,3 +367,63 @@ def test_xdmf_series_each_step_readable(shared_tmp: Path) -> None:
         assert times == [0.5, 1.0, 3.5]
         np.testing.assert_allclose(last, 7 * _field(points.T).T, atol=1e-13)
     MPI.COMM_WORLD.barrier()
+
+
+def _bar_functions(comm: MPI.Comm) -> dict[str, fem.Function]:
+    """On a 4 x 1 x 1 bar (8 x 2 x 2 cells, so that 2 ranks get partitions shorter than the bar): a Taylor-Hood
+    (P2 u, P1 p), a P1 vector and a scalar P1 Function collapsed from the vector space (as a contact multiplier
+    is), all zero."""
+    msh = mesh.create_box(comm, [np.zeros(3), np.array([4.0, 1.0, 1.0])], [8, 2, 2])
+    cell = compat.cell_name(msh)
+    mixed = compat.function_space(msh, compat.mixed_element([compat.element("Lagrange", cell, 2, (3,)),
+                                                              compat.element("Lagrange", cell, 1)]))
+    vector = compat.function_space(msh, "Lagrange", 1, (3,))
+    scalar, _ = vector.sub(0).collapse()
+    return {"solution": fem.Function(mixed), "u_n": fem.Function(vector), "multiplier_0": fem.Function(scalar)}
+
+
+def _scalar_field(x: np.ndarray) -> np.ndarray:
+    return x[0] - 2 * x[1] + x[2] ** 3
+
+
+def bar_checkpoint(folder: str, mode: str) -> None:
+    """Write (``mode`` "write") the bar's functions interpolated from _field / _scalar_field to checkpoint 1 in
+    ``folder``, or read them back (``mode`` "read") and assert they equal those formulas at the dofs: collective,
+    run by test_checkpoint_on_another_number_of_ranks on 1 rank and under mpirun on 2."""
+    functions = _bar_functions(MPI.COMM_WORLD)
+    if mode == "write":
+        functions["solution"].sub(0).interpolate(_field)
+        functions["solution"].sub(1).interpolate(_scalar_field)
+        functions["u_n"].interpolate(lambda x: 2 * _field(x))
+        functions["multiplier_0"].interpolate(_scalar_field)
+        for f in functions.values():
+            f.x.scatter_forward()
+        write_checkpoint(Path(folder), 1, functions, {"load_factor": 0.5})
+        return
+    assert read_checkpoint(Path(folder), 1, functions) == {"load_factor": 0.5}
+    u = functions["solution"].sub(0).collapse()
+    np.testing.assert_allclose(u.x.array.reshape(-1, 3), _field(u.function_space.tabulate_dof_coordinates().T).T,
+                               atol=1e-13)
+    p = functions["solution"].sub(1).collapse()
+    np.testing.assert_allclose(p.x.array, _scalar_field(p.function_space.tabulate_dof_coordinates().T), atol=1e-13)
+    nodes = functions["u_n"].function_space.tabulate_dof_coordinates().T
+    np.testing.assert_allclose(functions["u_n"].x.array.reshape(-1, 3), 2 * _field(nodes).T, atol=1e-13)
+    nodes = functions["multiplier_0"].function_space.tabulate_dof_coordinates().T
+    np.testing.assert_allclose(functions["multiplier_0"].x.array, _scalar_field(nodes), atol=1e-13)
+
+
+@serial_only
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="no mpirun")
+@pytest.mark.parametrize("written, read", [(2, 1), (1, 2)])
+def test_checkpoint_on_another_number_of_ranks(tmp_path: Path, written: int, read: int) -> None:
+    """A checkpoint written on ``written`` ranks is read on ``read`` ranks (mpirun -n 2 started here), on a bar
+    whose 2 partitions are shorter than the bar: every value back at its dof (Taylor-Hood, vector, and a
+    collapsed scalar space)."""
+    for ranks, mode in ((written, "write"), (read, "read")):
+        if ranks == 1:
+            bar_checkpoint(str(tmp_path), mode)
+            continue
+        code = f"from tests.test_long_runs import bar_checkpoint; bar_checkpoint({str(tmp_path)!r}, {mode!r})"
+        result = subprocess.run(["mpirun", "-n", str(ranks), sys.executable, "-c", code], env=ENV, text=True,
+                                capture_output=True, timeout=300)
+        assert result.returncode == 0, result.stderr[-3000:]
