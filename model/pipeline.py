@@ -32,7 +32,9 @@ After every converged step a checkpoint is written (model.output.checkpoint) and
 files and summary steps up to that checkpoint, restores the state (solution, dynamics' u_n, v_n, a_n,
 time, contact multipliers, load factor and the cut-back increment) and goes on, appending to the same
 XDMF series and VTU numbering; summary.json then covers every step and lists the restarts in "restarts".
-The restart needs the same mesh and discretization, not the same number of ranks (model.output.checkpoint).
+The restart needs the same problem (only output.*, solver.* and loading.max_cutbacks may change: a restart of
+another configuration is refused naming the first key that differs, model.config.restart), not the same number
+of ranks (model.output.checkpoint).
 
 In a dynamic run the "load factor" passed to expressions, activation curves and bone motions is the
 time t, and constant loads are scaled by min(t / load_ramp, 1).
@@ -495,6 +497,27 @@ def _earlier_summary(directory: Path, comm: MPI.Comm) -> dict[str, Any]:
     return summary  # type: ignore[return-value]
 
 
+def _problem_record(config: RunConfig, directory: Path, comm: MPI.Comm,
+                    restart: bool) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """The record every checkpoint keeps of the problem (the SHA-256 of each file a key that defines the problem
+    names: model.config.restart) and, for a restart, the earlier run's summary once the configuration is found to
+    continue its problem: a ConfigError naming the first key that differs otherwise (before the mesh is built and
+    before anything in DIR is touched)."""
+    from model.config.restart import file_digests, same_problem
+
+    earlier = _earlier_summary(directory, comm) if restart else None
+    found: Any = None
+    if comm.rank == 0:
+        record = {"files": file_digests(config.document)}
+        found = (record, *(same_problem(config.document, record["files"], earlier) if earlier else (None, None)))
+    record, error, warning = comm.bcast(found, root=0)
+    if error:
+        raise ConfigError(f"--restart {directory}: {error}")
+    if warning and comm.rank == 0:
+        log.warning("--restart %s: %s", directory, warning)
+    return record, earlier
+
+
 def _check_control(config: RunConfig, setup: Setup, restart: bool) -> None:
     """ConfigError (before any solve) for [loading] control = "arc_length" / "volume" where it cannot drive the run:
     it needs Newton on a quasi-static run without contact, load hooks (activation, bones) or Dirichlet values that
@@ -560,6 +583,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
          stop: StopFlag) -> dict[str, Any]:
     start = time.perf_counter()
     directory = Path(out) if out is not None else config.output.dir
+    # a restart of another problem is refused before the mesh is built and before anything in DIR is touched
+    problem_record, earlier = _problem_record(config, directory, comm, restart)
     setup = build(config, comm)
     _stop_before_solve(stop, comm, "before the solve started; the output folder is as it was")  # model.signals
     check_option_values(config.petsc_options)  # values PETSc would refuse: before anything is deleted or solved
@@ -568,7 +593,6 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
     _check_control(config, setup, restart)  # arc length / volume control: what they cannot drive, before any solve
-    earlier = _earlier_summary(directory, comm) if restart else None
     if earlier is None:
         remove_earlier_run(directory, comm)  # before any solve and before anything is written there
     from model.solvers.scale import scale_check
@@ -658,7 +682,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         summary.json names the new one)."""
         step = writer.count
         meta = {"step": step, "summary_steps": len(summary["steps"]), "load_factor": float(problem.time),
-                "increment": next_increment}
+                "increment": next_increment, "problem": problem_record}
         if dynamics is not None:
             meta.update(time=dynamics.time, dissipated_energy=dynamics.dissipated_energy)
         files = write_checkpoint(directory, step, state(), meta)

@@ -1,7 +1,10 @@
 """Long runs (issue 12, item 4): SIGTERM / SIGINT end a run cleanly (exit 143 / 130, summary.json
 "interrupted"), the XDMF time series opens with meshio and pyvista after SIGKILL with every completed step,
 and ``--restart DIR`` reaches the final probes of an uninterrupted run to 1e-10 (quasi-static and dynamic,
-and from a run on 2 ranks restarted on 1).
+and from a run on 2 ranks restarted on 1). A restart of another problem (material.0.E, mesh.cells changed) is
+refused naming the key before anything in the folder is touched; output.*, solver.* and loading.max_cutbacks may
+change (model.config.restart). A checkpoint written on 1 rank reads on 2 and one written on 2 on 1, on a bar whose
+partitions are shorter than it.
 
 The runs are subprocesses (serial_only); each is stopped once summary.json shows two converged steps. The
 checkpoint and XDMF writers are also tested in-process (collective, on 1 and 2 ranks) against functions
@@ -27,7 +30,10 @@ import pytest
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from model import compat
+import model
+from model import compat, pipeline
+from model.config.restart import RULE, file_digests, same_problem
+from model.errors import ConfigError
 from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
 from model.output.writer import XdmfSeries
 from tests.conftest import EXAMPLES, ROOT, environment, serial_only, write_toml
@@ -271,6 +277,92 @@ def test_sigterm_under_mpirun_then_restart_on_one_rank(tmp_path: Path) -> None:
     np.testing.assert_allclose(_final_probes(restarted), _final_probes(reference), rtol=0, atol=1e-10)
 
 
+@pytest.fixture(scope="module")
+def stopped_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The uniaxial cube (3^3 cells, 20 steps) stopped by SIGTERM after 2 or more converged steps: (its config,
+    its folder). Shared by the restart-check tests below, which must leave the folder as it is."""
+    folder = tmp_path_factory.mktemp("stopped")
+    raw = _uniaxial(20)
+    raw["mesh"]["cells"] = [3, 3, 3]
+    config = _write_config(raw, folder)
+    result = _interrupt(config, folder / "out", signal.SIGTERM)
+    assert result.returncode == 143, result.stderr[-3000:]
+    return config, folder / "out"
+
+
+def _snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
+    return {str(p.relative_to(folder)): (p.read_bytes(), p.stat().st_mtime_ns) for p in folder.rglob("*")
+            if p.is_file()}
+
+
+@serial_only
+def test_restart_of_another_problem_is_refused_and_touches_nothing(stopped_run: tuple[Path, Path]) -> None:
+    """A restart whose configuration changes a key that defines the problem: exit 2 with one line naming the key
+    (also when an allowed key changes too), and the folder is as it was (every file's bytes and time). A changed
+    mesh likewise (model.pipeline.run, in-process: the check comes before the mesh is built)."""
+    config, out = stopped_run
+    before = _snapshot(out)
+    result = subprocess.run(_command(config, "--restart", str(out), "--set", "output.vtu=false", "--set",
+                                     "material.0.E=2e6"), env=ENV, text=True, capture_output=True, timeout=300)
+    assert result.returncode == 2, result.stderr[-3000:]
+    assert result.stderr == (f"error: --restart {out}: material.0.E is 2000000.0 here, 10000.0 in the run being "
+                             f"continued; {RULE}\n")
+    assert _snapshot(out) == before
+    changed = model.load_config(config, overrides={"mesh.cells": [4, 3, 3]})
+    with pytest.raises(ConfigError, match=r"^--restart .*: mesh\.cells is \[4, 3, 3\] here, \[3, 3, 3\] in the run "
+                                          r"being continued; a restart continues the same problem \(only output"):
+        pipeline.run(changed, out, restart=True)
+    assert _snapshot(out) == before
+
+
+@serial_only
+def test_restart_may_change_output_solver_and_max_cutbacks(stopped_run: tuple[Path, Path], tmp_path: Path) -> None:
+    """Output, solver options and loading.max_cutbacks may change: the restart goes on to load factor 1."""
+    config, stopped = stopped_run
+    out = tmp_path / "out"
+    shutil.copytree(stopped, out)
+    summary = _run(config, "--set", "output.vtu=false", "--set", "solver.petsc_options.snes_rtol=1e-10",
+                   "--set", "loading.max_cutbacks=3", "--restart", str(out))
+    assert summary["status"] == "completed" and summary["steps"][-1]["load_factor"] == 1.0
+    assert summary["restarts"][0]["from_step"] == _summary(stopped)["last_completed_step"]
+    assert summary["config"]["solver"]["petsc_options"]["snes_rtol"] == 1e-10
+    assert summary["checkpoint"]["problem"] == {"files": {}}  # the box mesh names no file
+
+
+def test_restart_check_compares_files_by_contents_and_keys_as_written(tmp_path: Path) -> None:
+    """model.config.restart without a run: files by the digest of their contents (moved: the same; changed on disk:
+    refused naming the key), a key given in one document only differs, output.* and loading.max_cutbacks may
+    change, and a checkpoint without the record of the files is accepted with a warning (files by name)."""
+    law, msh = tmp_path / "law.py", tmp_path / "body.msh"
+    law.write_text("def psi(F):\n    return 0\n")
+    msh.write_bytes(b"mesh 1")
+    document = {"mesh": {"file": str(msh)}, "material": [{"region": "all", "law": f"{law}:psi", "E": 1.0}],
+                "loading": {"steps": 4}, "probe": [{"name": "tip", "point": [1.0, 1.0, 1.0]}],
+                "output": {"render_mesh": str(msh)}}
+    digests = file_digests(document)
+    assert sorted(digests) == ["material.0.law", "mesh.file"]  # output.* is not recorded
+    earlier = {"config": document, "checkpoint": {"step": 2, "problem": {"files": digests}}}
+    assert same_problem(document, digests, earlier) == (None, None)
+    allowed = {**document, "loading": {"steps": 4, "max_cutbacks": 2}, "output": {"png": False}, "solver": {}}
+    assert same_problem(allowed, digests, earlier) == (None, None)
+    moved = tmp_path / "moved.msh"
+    shutil.copy(msh, moved)
+    elsewhere = {**document, "mesh": {"file": str(moved)}}
+    assert same_problem(elsewhere, file_digests(elsewhere), earlier) == (None, None)
+    error, _ = same_problem({**document, "probe": [{"name": "tip", "point": [1.0, 0.5, 0.5]}]}, digests, earlier)
+    assert error == f"probe.0.point is [1.0, 0.5, 0.5] here, [1.0, 1.0, 1.0] in the run being continued; {RULE}"
+    error, _ = same_problem({**document, "loading": {}}, digests, earlier)
+    assert error == f"loading.steps is not given here, 4 in the run being continued; {RULE}"
+    msh.write_bytes(b"mesh 2")
+    error, _ = same_problem(document, file_digests(document), earlier)
+    assert error == f"mesh.file: the contents of {msh} differ from the run being continued's (SHA-256); {RULE}"
+    old = {"config": document, "checkpoint": {"step": 2}}  # written before the record: files by name
+    error, warning = same_problem(document, file_digests(document), old)
+    assert error is None and "files compared by name only" in warning
+    error, _ = same_problem(elsewhere, file_digests(elsewhere), old)
+    assert error.startswith(f"mesh.file is \"{moved}\" here, \"{msh}\" in the run being continued")
+
+
 # --- in-process, collective -----------------------------------------------------------------------------
 
 
@@ -314,6 +406,32 @@ def test_checkpoint_round_trip_mixed_space(shared_tmp: Path) -> None:
         read_checkpoint(shared_tmp, 4, {"solution": other})
 
 
+def test_checkpoint_keys_off_by_one_quantum_are_found(shared_tmp: Path) -> None:
+    """A dof whose coordinates come out one quantization step (1e-9 of the size) away from the saved key, as the
+    last bit of a coordinate computed from another cell can, is still found; two steps away it is not."""
+    v = fem.Function(compat.function_space(mesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2), "Lagrange", 1, (3,)))
+    v.interpolate(_field)
+    v.x.scatter_forward()  # the ghosts' values as their owners' (interpolated on another cell, they may differ)
+    write_checkpoint(shared_tmp, 1, {"u_n": v}, {})
+    path = shared_tmp / "checkpoint_0001.npz"
+
+    def shift(by: list[int]) -> None:
+        if MPI.COMM_WORLD.rank == 0:
+            with np.load(path) as f:
+                data = {k: f[k] for k in f.files}
+            data["u_n.keys"][:, 2:] += np.array(by)
+            np.savez(path, **data)
+        MPI.COMM_WORLD.barrier()
+
+    shift([1, -1, 1])
+    back = fem.Function(v.function_space)
+    read_checkpoint(shared_tmp, 1, {"u_n": back})
+    np.testing.assert_array_equal(back.x.array, v.x.array)
+    shift([1, 0, 0])
+    with pytest.raises(ValueError, match="dofs of 'u_n' are not in the checkpoint"):
+        read_checkpoint(shared_tmp, 1, {"u_n": back})
+
+
 def test_xdmf_series_each_step_readable(shared_tmp: Path) -> None:
     """Steps written by XdmfSeries read back with meshio (rank 0) as the formula at the mesh points, also
     before the series is finished; a resumed series keeps the first steps and goes on."""
@@ -341,3 +459,61 @@ def test_xdmf_series_each_step_readable(shared_tmp: Path) -> None:
         assert times == [0.5, 1.0, 3.5]
         np.testing.assert_allclose(last, 7 * _field(points.T).T, atol=1e-13)
     MPI.COMM_WORLD.barrier()
+
+
+def _bar_functions(comm: MPI.Comm) -> dict[str, fem.Function]:
+    """On a 4 x 1 x 1 bar (8 x 2 x 2 cells, so that 2 ranks get partitions shorter than the bar): a Taylor-Hood
+    (P2 u, P1 p), a P1 vector and a scalar P1 Function collapsed from the vector space (as a contact multiplier
+    is), all zero."""
+    msh = mesh.create_box(comm, [np.zeros(3), np.array([4.0, 1.0, 1.0])], [8, 2, 2])
+    cell = compat.cell_name(msh)
+    mixed = compat.function_space(msh, compat.mixed_element([compat.element("Lagrange", cell, 2, (3,)),
+                                                              compat.element("Lagrange", cell, 1)]))
+    vector = compat.function_space(msh, "Lagrange", 1, (3,))
+    scalar, _ = vector.sub(0).collapse()
+    return {"solution": fem.Function(mixed), "u_n": fem.Function(vector), "multiplier_0": fem.Function(scalar)}
+
+
+def _scalar_field(x: np.ndarray) -> np.ndarray:
+    return x[0] - 2 * x[1] + x[2] ** 3
+
+
+def bar_checkpoint(folder: str, read: int, write: int) -> None:
+    """Read checkpoint ``read`` of ``folder`` (0: none) into the bar's functions and assert they equal _field /
+    _scalar_field at the dofs, then write the functions interpolated from those formulas to checkpoint ``write``
+    (0: none): collective, run by test_checkpoint_on_another_number_of_ranks on 1 rank and under mpirun on 2."""
+    functions = _bar_functions(MPI.COMM_WORLD)
+    if read:
+        assert read_checkpoint(Path(folder), read, functions) == {"load_factor": 0.5}
+        u = functions["solution"].sub(0).collapse()
+        nodes = u.function_space.tabulate_dof_coordinates().T
+        np.testing.assert_allclose(u.x.array.reshape(-1, 3), _field(nodes).T, atol=1e-13)
+        p = functions["solution"].sub(1).collapse()
+        np.testing.assert_allclose(p.x.array, _scalar_field(p.function_space.tabulate_dof_coordinates().T),
+                                   atol=1e-13)
+        nodes = functions["u_n"].function_space.tabulate_dof_coordinates().T
+        np.testing.assert_allclose(functions["u_n"].x.array.reshape(-1, 3), 2 * _field(nodes).T, atol=1e-13)
+        nodes = functions["multiplier_0"].function_space.tabulate_dof_coordinates().T
+        np.testing.assert_allclose(functions["multiplier_0"].x.array, _scalar_field(nodes), atol=1e-13)
+    if write:
+        functions["solution"].sub(0).interpolate(_field)
+        functions["solution"].sub(1).interpolate(_scalar_field)
+        functions["u_n"].interpolate(lambda x: 2 * _field(x))
+        functions["multiplier_0"].interpolate(_scalar_field)
+        for f in functions.values():
+            f.x.scatter_forward()
+        write_checkpoint(Path(folder), write, functions, {"load_factor": 0.5})
+
+
+@serial_only
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="no mpirun")
+def test_checkpoint_on_another_number_of_ranks(tmp_path: Path) -> None:
+    """A checkpoint written on 1 rank is read on 2 (mpirun -n 2 started here), which write one read back on 1, on a
+    bar whose 2 partitions are shorter than the bar: every value back at its dof (Taylor-Hood, vector, and a
+    collapsed scalar space)."""
+    bar_checkpoint(str(tmp_path), read=0, write=1)
+    code = f"from tests.test_long_runs import bar_checkpoint; bar_checkpoint({str(tmp_path)!r}, read=1, write=2)"
+    result = subprocess.run(["mpirun", "-n", "2", sys.executable, "-c", code], env=ENV, text=True,
+                            capture_output=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    bar_checkpoint(str(tmp_path), read=2, write=0)

@@ -5,15 +5,18 @@ for each saved Function (the solution u or the mixed (u, p); dynamics' u_n, v_n,
 multipliers "multiplier_i") its owned dof values gathered from every rank, each keyed by a description of
 the dof that does not depend on the partition:
 
-    (sub-space, component, x, y, z)   x, y, z the dof's coordinates quantized to 1e-9 of the mesh's size
+    (sub-space, component, x, y, z)   x, y, z the dof's coordinates quantized to 1e-9 of the largest extent of
+                                      the whole mesh's bounding box (the same number on every partition)
 
 and the scalars (JSON in "meta"): the load factor (dynamics: also the time and the dissipated energy), the
 increment the next step takes (the cut-back state), the number of summary steps. Activation and
 procedural targets are functions of the load factor (time) and follow from it.
 
 Reading maps the values back by those keys onto the dofs of each rank, so a restart may use another
-number of ranks (and partition) than the run it continues, on the same mesh and discretization; a dof
-not found gives a one-line error. Rank 0 holds the whole state while writing and reading (the limit of
+number of ranks (and partition) than the run it continues, on the same mesh and discretization. A dof's
+coordinates are computed from one of its cells, which the partition picks, so they may differ in the last bit:
+a key not found exactly is looked up among its 26 neighbours on the quantization grid (1e-9 of the size apart);
+a dof found neither way gives a one-line error. Rank 0 holds the whole state while writing and reading (the limit of
 this format on large meshes). Writing goes through a temporary name, fsync and os.replace; the
 pipeline then rewrites summary.json to name the new checkpoint and only then removes the previous one
 (remove_checkpoint): after a kill at any moment the checkpoint summary.json names exists, complete.
@@ -21,6 +24,7 @@ pipeline then rewrites summary.json to name the new checkpoint and only then rem
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import weakref
@@ -79,9 +83,23 @@ def _owned_keys(space: Any) -> np.ndarray:
 
 
 def _scale(msh: Any) -> float:
+    """1e-9 of the largest extent of the whole mesh's bounding box (an allreduce of every rank's box: the same
+    number on any partition; the largest of the ranks' own extents would depend on how the mesh is cut)."""
     x = msh.geometry.x
-    size = msh.comm.allreduce(float(np.ptp(x, axis=0).max()) if x.size else 0.0, op=MPI.MAX)
-    return 1e-9 * (size or 1.0)
+    box = np.concatenate([-np.min(x, axis=0, initial=np.inf), np.max(x, axis=0, initial=-np.inf)])
+    msh.comm.Allreduce(MPI.IN_PLACE, box, op=MPI.MAX)  # -low, high of the whole mesh
+    return 1e-9 * (float(np.max(box[3:] + box[:3])) or 1.0)
+
+
+def _neighbour(saved: dict[tuple[int, ...], int], key: np.ndarray) -> int:
+    """The index of the saved key next to ``key`` on the quantization grid (same sub-space and component,
+    coordinates off by at most one quantum each), -1 when there is none."""
+    head = tuple(int(k) for k in key[:2])
+    for offset in itertools.product((0, -1, 1), repeat=3):
+        found = saved.get(head + tuple(int(k + o) for k, o in zip(key[2:], offset)), -1)
+        if found >= 0:
+            return found
+    return -1
 
 
 def write_checkpoint(directory: Path, step: int, functions: dict[str, fem.Function],
@@ -143,6 +161,8 @@ def read_checkpoint(directory: Path, step: int, functions: dict[str, fem.Functio
         keys = _quantize(dof_keys(space), _scale(space.mesh))
         saved = {tuple(k): i for i, k in enumerate(data[f"{name}.keys"].tolist())}
         index = np.array([saved.get(tuple(k), -1) for k in keys.tolist()], dtype=np.int64)
+        for i in np.flatnonzero(index < 0):  # the last bit of a coordinate across a rounding boundary
+            index[i] = _neighbour(saved, keys[i])
         missing = comm.allreduce(int(np.sum(index < 0)), op=MPI.SUM)
         if missing:
             raise ValueError(f"{path}: {missing} dofs of {name!r} are not in the checkpoint: restart with the "
