@@ -32,9 +32,9 @@ After every converged step a checkpoint is written (model.output.checkpoint) and
 files and summary steps up to that checkpoint, restores the state (solution, dynamics' u_n, v_n, a_n,
 time, contact multipliers, load factor and the cut-back increment) and goes on, appending to the same
 XDMF series and VTU numbering; summary.json then covers every step and lists the restarts in "restarts".
-The restart needs the same problem (only output.*, solver.* and loading.max_cutbacks may change: a restart of
-another configuration is refused naming the first key that differs, model.config.restart), not the same number
-of ranks (model.output.checkpoint).
+The restart needs the same problem (only output.*, solver.*, loading.max_cutbacks and loading.max_steps may
+change: a restart of another configuration is refused naming the first key that differs, model.config.restart),
+not the same number of ranks (model.output.checkpoint).
 
 In a dynamic run the "load factor" passed to expressions, activation curves and bone motions is the
 time t, and constant loads are scaled by min(t / load_ramp, 1).
@@ -45,8 +45,10 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import os
 import signal
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,12 +62,12 @@ from model import compat
 from model.config import RunConfig
 from model.config.expressions import compile_expression, uses_load_factor
 from model.domain import Domain, Probes, make_domain, place_probes
-from model.errors import ConfigError, SolveFailed
+from model.errors import ConfigError, OutputFailed, SolveFailed, os_error_message
 from model.fields.activation import ActivationField
 from model.fields.fibres import FibreField, solve_laplace
 from model.fields.targets import TargetField
 from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
-from model.output.writer import SUMMARY, ResultWriter, remove_earlier_run, write_json_atomic
+from model.output.writer import SUMMARY, ResultWriter, discard, on_rank0, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.conflicts import Condition, Load, check_conditions
 from model.problem.measurements import Volumes, reactions
@@ -557,6 +559,50 @@ def _check_control(config: RunConfig, setup: Setup, restart: bool) -> None:
             raise ConfigError("loading.volume_ratio: control = \"volume\" needs the final volume over the rest volume")
 
 
+#: a file of RESERVE_BYTES kept in the output folder during a run and removed when summary.json must be written on a
+#: full disk (its status "failed" with the reason) or at the end
+RESERVE = ".space_reserve"
+RESERVE_BYTES = 4 << 20
+
+
+def _guarded(comm: MPI.Comm, where: Path, action: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``action(*args, **kwargs)``, with an OSError (named by its file, else by ``where``) on any rank (a full disk,
+    a folder turned read-only: most writes are rank 0's) raised on every rank as one OutputFailed naming the path
+    (collective: the other ranks would otherwise wait in the next solve for ever)."""
+    failure = None
+    result = None
+    try:
+        result = action(*args, **kwargs)
+    except OSError as err:
+        failure = os_error_message(err if err.filename is not None else OSError(err.errno, err.strerror, str(where)))
+    failures = [f for f in comm.allgather(failure) if f]
+    if failures:
+        raise OutputFailed(f"{failures[0]}: free space or pick a writable --out; the steps written before are "
+                           "kept (continue with --restart where a checkpoint was written)")
+    return result
+
+
+def _check_output_folder(directory: Path, comm: MPI.Comm) -> None:
+    """Before anything is deleted or solved: ConfigError when the output path is an existing file, OutputFailed
+    when the folder cannot be made or written (a probe file is written and removed). Collective."""
+    failure: tuple[str, str] | None = None
+    if comm.rank == 0:
+        if directory.exists() and not directory.is_dir():
+            failure = ("config", f"output.dir (--out): {directory} is a file, not a folder: give a folder's path")
+        else:
+            probe = directory / f".write_check_{os.getpid()}"
+            try:
+                directory.mkdir(parents=True, exist_ok=True)
+                probe.write_bytes(b"")
+                probe.unlink()
+            except OSError as err:
+                failure = ("os", os_error_message(err, "cannot write the results there"))
+    failure = comm.bcast(failure, root=0)
+    if failure is not None:
+        kind, message = failure
+        raise ConfigError(message) if kind == "config" else OutputFailed(message)
+
+
 def run(config: RunConfig, out: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD, *,
         objective: bool | None = None, restart: bool = False) -> dict[str, Any]:
     """Run a configuration; returns the summary (also written to OUT/summary.json).
@@ -593,8 +639,11 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         log.info("dolfinx %s, PETSc %s, %s", versions["dolfinx"], versions["petsc"], versions["os"])
     problem = setup.problem
     _check_control(config, setup, restart)  # arc length / volume control: what they cannot drive, before any solve
+    _check_output_folder(directory, comm)  # a file, or a folder the system will not let us write: one line
     if earlier is None:
-        remove_earlier_run(directory, comm)  # before any solve and before anything is written there
+        _guarded(comm, directory, remove_earlier_run, directory, comm)  # before any solve, before anything is written
+    reserve = directory / RESERVE  # space kept for summary.json's last word should the disk fill up
+    _guarded(comm, directory, on_rank0, comm, reserve.write_bytes, bytes(RESERVE_BYTES))
     from model.solvers.scale import scale_check
 
     _check_matrix(problem, config, setup.contacts)  # [solver] matrix = "nest" where it cannot serve: before any solve
@@ -610,11 +659,11 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     solver = make_solver(problem, config, setup.contacts, objective=objective,
                          scaled=scale.newton_options(setup.domain.mesh.geometry.dim))
     checkpoint = earlier["checkpoint"] if earlier is not None else None
-    writer = ResultWriter(problem, directory, config.output.xdmf, config.output.vtu, config.output.png,
-                          stress_unit=config.units.unit("stress"), length_unit=config.units.unit("length"),
-                          resume=checkpoint["step"] if checkpoint else 0,
-                          files=[f for f in earlier.get("files", []) if not f.startswith("checkpoint_")]
-                          if earlier else None, render=setup.render)
+    writer = _guarded(comm, directory, ResultWriter, problem, directory, config.output.xdmf, config.output.vtu,
+                      config.output.png, stress_unit=config.units.unit("stress"),
+                      length_unit=config.units.unit("length"), resume=checkpoint["step"] if checkpoint else 0,
+                      files=[f for f in earlier.get("files", []) if not f.startswith("checkpoint_")]
+                      if earlier else None, render=setup.render)
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
     volumes = Volumes(problem)
@@ -661,6 +710,9 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     saved_checkpoint: dict[str, Any] = dict(checkpoint) if checkpoint else {}
 
     def save() -> None:
+        _guarded(comm, directory, _save)
+
+    def _save() -> None:
         summary["wall_time_s"] = previous_time + time.perf_counter() - start
         if saved_checkpoint:
             summary["checkpoint"] = dict(saved_checkpoint)
@@ -727,12 +779,12 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
                     step["contact_pairs"] = pairs
             if setup.sliding:
                 step["sliding"] = {c.surface: {"max_gap": c.max_gap(), "force": c.force()} for c in setup.sliding}
-            writer.write_step(t)
+            _guarded(comm, directory, writer.write_step, t)
         summary["steps"].append(step)
-        replaced = write_state(next_increment) if r.converged else None
+        replaced = _guarded(comm, directory, write_state, next_increment) if r.converged else None
         save()
         if replaced is not None:
-            remove_checkpoint(directory, replaced, comm)
+            _guarded(comm, directory, remove_checkpoint, directory, replaced, comm)
         if comm.rank == 0:
             n = len(summary["steps"])
             status = "converged" if r.converged else f"FAILED ({r.reason_name}), cutting back"
@@ -810,6 +862,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         _stop_before_solve(stop, comm, "before the first step")  # summary.json "interrupted" (model.signals)
         ok = stepping()
     except Interrupted as err:
+        if comm.rank == 0:
+            discard(reserve)
         summary["status"] = "interrupted"
         summary["signal"] = signal.Signals(err.signum).name
         summary["last_completed_step"] = writer.count
@@ -824,6 +878,21 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             log.warning("%s: stopped after %d completed steps; summary.json says \"interrupted\"; %s", err,
                         writer.count, then)
         raise
+    except OutputFailed as err:  # the disk: the steps written before are kept; summary.json "failed" if it can be
+        summary["status"] = "failed"
+        summary["failure"] = str(err)
+        if comm.rank == 0:
+            discard(reserve)  # the space summary.json needs on a full disk
+        try:
+            save()
+        except OutputFailed:
+            if comm.rank == 0:
+                log.warning("summary.json could not be updated (it says \"running\" with the steps before)")
+        solver.destroy()
+        if dynamics is not None:
+            dynamics.destroy()
+        free_garbage(msh.comm)
+        raise
     summary["status"] = "completed" if ok else "failed"
     if not ok:
         summary["failure"] = ok.reason
@@ -833,10 +902,12 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     if unused:
         summary["unused_petsc_options"] = unused
     what = "t" if dynamic else "load factor"
-    png = writer.write_png(f"{what} {problem.time:.3g}")
+    png = _guarded(comm, directory, writer.write_png, f"{what} {problem.time:.3g}")
     if png is not None:
         summary["png"] = png.name
-    writer.close()
+    _guarded(comm, directory, writer.close)
+    if comm.rank == 0:
+        discard(reserve)
     save()
     solver.destroy()
     if dynamics is not None:

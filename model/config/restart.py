@@ -2,11 +2,11 @@
 
 A restart continues the same problem from its last checkpoint, so everything that decides the solution path must
 be what the earlier run had: the mesh, the discretization, the materials and their fields (fibres, activation),
-bones and contacts, the loads (boundary conditions, body forces, [loading] but max_cutbacks, [dynamics]),
+bones and contacts, the loads (boundary conditions, body forces, [loading] but max_cutbacks and max_steps, [dynamics]),
 [parameters], [units] and the probes (the summary's steps of both runs must report the same quantities). Only
 the keys of MAY_CHANGE may differ: ``output.*`` (what is written), ``solver.*`` (how each step is solved: method,
-tangent, linear solver, matrix, PETSc options and tolerances) and ``loading.max_cutbacks`` (when the stepping gives
-up; the steps it converges are the same).
+tangent, linear solver, matrix, PETSc options and tolerances), ``loading.max_cutbacks`` and ``loading.max_steps``
+(when the stepping gives up; the steps it converges are the same).
 
 The comparison is key by key, between the configuration documents after overrides (``config.document``, which
 summary.json records as "config"), so a refusal names the first key that differs, in the order of this run's
@@ -28,10 +28,11 @@ from pathlib import Path
 from typing import Any
 
 #: the keys (dotted prefixes) a restart may change
-MAY_CHANGE = ("output", "solver", "loading.max_cutbacks")
+MAY_CHANGE = ("output", "solver", "loading.max_cutbacks", "loading.max_steps")
 
 #: the end of a refusal's message
-RULE = "a restart continues the same problem (only output.*, solver.* and loading.max_cutbacks may change)"
+RULE = ("a restart continues the same problem (only output.*, solver.*, loading.max_cutbacks and loading.max_steps "
+        "may change)")
 
 _ABSENT = object()
 

@@ -24,6 +24,7 @@ pipeline then rewrites summary.json to name the new checkpoint and only then rem
 
 from __future__ import annotations
 
+import io
 import itertools
 import json
 import os
@@ -34,6 +35,8 @@ from typing import Any
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
+
+from model.output.writer import discard, named, on_rank0
 
 
 def checkpoint_name(step: int) -> str:
@@ -117,14 +120,22 @@ def write_checkpoint(directory: Path, step: int, functions: dict[str, fem.Functi
             arrays[f"{name}.keys"] = np.concatenate([p[0] for p in parts])
             arrays[f"{name}.values"] = np.concatenate([p[1] for p in parts])
     name = checkpoint_name(step)
-    if comm.rank == 0:
+
+    def write() -> None:
         tmp = directory / (name + ".tmp")
-        with open(tmp, "wb") as out:
-            np.savez(out, meta=np.array(json.dumps(meta)), **arrays)
-            out.flush()
-            os.fsync(out.fileno())
-        os.replace(tmp, directory / name)
-    comm.barrier()
+        data = io.BytesIO()  # the zip in memory: a full disk fails the one write below, not the zip file's close
+        np.savez(data, meta=np.array(json.dumps(meta)), **arrays)
+        try:
+            with open(tmp, "wb") as out:
+                out.write(data.getbuffer())
+                out.flush()
+                os.fsync(out.fileno())
+            os.replace(tmp, directory / name)
+        except OSError as err:  # a full disk: the half-written file goes, the error names it, on every rank
+            discard(tmp)
+            raise named(err, tmp) from None
+
+    on_rank0(comm, write)
     return [name]
 
 

@@ -32,11 +32,13 @@ summary.json accounts for, and nothing else.
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
 import subprocess
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -128,15 +130,49 @@ def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
 
 def write_text_atomic(path: Path, text: str, sync: bool = False) -> None:
     """Write ``text`` to path.tmp, (``sync``: fsync it), then os.replace it onto ``path``: a reader (or a
-    process killed at any point) sees the old file or the new one, never half of one."""
+    process killed at any point) sees the old file or the new one, never half of one. An OSError (a full disk)
+    removes path.tmp and names ``path``."""
     path = Path(path)
     tmp = path.with_suffix(path.suffix + ".tmp")
-    with open(tmp, "w") as f:
-        f.write(text)
-        if sync:
-            f.flush()
-            os.fsync(f.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as f:
+            f.write(text)
+            if sync:
+                f.flush()
+                os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except OSError as err:
+        discard(tmp)
+        raise named(err, path) from None
+
+
+def named(err: OSError, path: Path) -> OSError:
+    """``err`` with ``path`` as its file name where it has none (a write that fails on a full disk names none)."""
+    return err if err.filename is not None else OSError(err.errno, err.strerror or str(err), str(path))
+
+
+def discard(path: Path) -> None:
+    """Remove a half-written file, if the system lets us (it frees the space a full disk needs for summary.json)."""
+    try:
+        Path(path).unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def on_rank0(comm: MPI.Comm, action: Callable[..., Any], *args: Any) -> Any:
+    """``action(*args)`` on rank 0 (its result there, None elsewhere); an OSError it raises is raised on every
+    rank (collective: a rank that went on to the next collective call while rank 0 failed would wait for ever)."""
+    error: OSError | None = None
+    result = None
+    if comm.rank == 0:
+        try:
+            result = action(*args)
+        except OSError as err:
+            error = err
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise error
+    return result
 
 
 def _fsync(path: Path) -> None:
@@ -200,9 +236,14 @@ class XdmfSeries:
             with XDMFFile(self.comm, str(part), "w") as f:
                 for function in functions:
                     f.write_function(function, time)
+        except RuntimeError as err:  # HDF5's (a full disk): this step's files go, the index stays as it was
+            if self.comm.rank == 0:
+                discard(part)
+                discard(self.directory / self.step_file(k))
+            raise OSError(errno.EIO, f"the HDF5 write failed: {err}", str(self.directory / self.step_file(k))) from None
         finally:
             dolfinx_log.set_log_level(level)
-        if self.comm.rank == 0:
+        def index() -> None:
             _fsync(self.directory / self.step_file(k))
             root = ET.parse(part).getroot()
             for collection in root.iter("Grid"):
@@ -213,8 +254,9 @@ class XdmfSeries:
             self.steps = k
             self._write_index()
             part.unlink()
+
+        on_rank0(self.comm, index)  # an OSError (a full disk) on every rank
         self.steps = k
-        self.comm.barrier()
         return self.step_file(k)
 
     def _write_index(self) -> None:
@@ -354,8 +396,7 @@ class ResultWriter:
         if self.want_vtu or self.want_png:
             self.last_gathered = self.gather(fields)
             if self.want_vtu:
-                if self.comm.rank == 0:
-                    write_vtu(self.directory / f"step_{self.count:04d}.vtu", self.last_gathered)
+                on_rank0(self.comm, write_vtu, self.directory / f"step_{self.count:04d}.vtu", self.last_gathered)
                 self._add(f"step_{self.count:04d}.vtu")
 
     def _add(self, *names: str) -> None:
