@@ -476,3 +476,8 @@ def test_nu_zero_in_the_mixed_formulation_is_named_nu() -> None:
 def test_output_dir_naming_a_file(tmp_path: Path) -> None:
     (tmp_path / "taken").write_text("x")
     parse_error(mutated(set_in("output", "dir", str(tmp_path / "taken"))), "output.dir", "is a file, not a folder")
+
+
+@pytest.mark.parametrize("cells", [[2**63, 4, 4], [10**6, 10**6, 10**6]])
+def test_generator_count_has_a_maximum(cells: list[int]) -> None:
+    build_error(mutated(set_in("mesh", "cells", cells)), "mesh.cells", "must be <= 10000")
