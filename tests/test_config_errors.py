@@ -481,3 +481,11 @@ def test_output_dir_naming_a_file(tmp_path: Path) -> None:
 @pytest.mark.parametrize("cells", [[2**63, 4, 4], [10**6, 10**6, 10**6]])
 def test_generator_count_has_a_maximum(cells: list[int]) -> None:
     build_error(mutated(set_in("mesh", "cells", cells)), "mesh.cells", "must be <= 10000")
+
+
+def test_turn_elements_has_a_maximum() -> None:
+    from meshes._validate import ParameterError
+    from meshes.arm_segment import check_turn_elements
+
+    with pytest.raises(ParameterError, match=r"turn_elements must be an integer in \[6, 10000\]"):
+        check_turn_elements("layered_arm", 2**63)
