@@ -11,7 +11,10 @@ import math
 from collections.abc import Sequence
 from numbers import Integral, Real
 
-__all__ = ["ParameterError", "positive_float", "positive_floats", "positive_int", "positive_ints"]
+#: the largest count a generator takes (cells along an edge, divisions ...)
+MAX_COUNT = 10_000
+
+__all__ = ["MAX_COUNT", "ParameterError", "positive_float", "positive_floats", "positive_int", "positive_ints"]
 
 
 class ParameterError(ValueError, TypeError):
@@ -33,12 +36,14 @@ def positive_float(generator: str, name: str, value: object) -> float:
 
 
 def positive_int(generator: str, name: str, value: object) -> int:
-    """Return ``value`` as an int after checking it is an integer >= 1 (bools are rejected)."""
+    """Return ``value`` as an int after checking it is an integer in [1, MAX_COUNT] (bools are rejected)."""
     if isinstance(value, bool) or not isinstance(value, Integral):
         raise ParameterError(f"{generator}: {name} must be an integer >= 1, got {value!r}")
     result = int(value)
     if result < 1:
         raise ParameterError(f"{generator}: {name} must be >= 1, got {result!r}")
+    if result > MAX_COUNT:
+        raise ParameterError(f"{generator}: {name} must be <= {MAX_COUNT}, got {result!r}")
     return result
 
 

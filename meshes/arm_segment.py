@@ -22,7 +22,7 @@ import time
 import gmsh
 
 from meshes._gmsh import CURVATURE_ELEMENTS, curved_size_options, generate_tetrahedra, gmsh_session
-from meshes._validate import ParameterError, positive_float
+from meshes._validate import MAX_COUNT, ParameterError, positive_float
 from meshes.data import MeshData, from_gmsh_model
 from meshes.fusiform import add_muscle
 
@@ -202,9 +202,10 @@ def arm_segment_options(size: float, tendon_radius: float | None = None,
 
 
 def check_turn_elements(generator: str, turn_elements: object) -> int:
-    """``turn_elements`` as an int >= 6, else :class:`ParameterError` naming the generator."""
-    if isinstance(turn_elements, bool) or not isinstance(turn_elements, int) or turn_elements < 6:
-        raise ParameterError(f"{generator}: turn_elements must be an integer >= 6, got {turn_elements!r}")
+    """``turn_elements`` as an int in [6, MAX_COUNT], else :class:`ParameterError` naming the generator."""
+    if isinstance(turn_elements, bool) or not isinstance(turn_elements, int) or not 6 <= turn_elements <= MAX_COUNT:
+        raise ParameterError(f"{generator}: turn_elements must be an integer in [6, {MAX_COUNT}], "
+                             f"got {turn_elements!r}")
     return turn_elements
 
 

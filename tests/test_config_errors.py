@@ -346,3 +346,146 @@ def test_cli_invalid_toml(tmp_path: Path) -> None:
     assert result.stderr.splitlines() == [result.stderr.strip()]
     assert result.stderr.startswith(f"error: config: {config}: invalid TOML")
     assert list(tmp_path.iterdir()) == [config]
+
+
+# --- what tools/fuzz.py found: each a one-line ConfigError naming the key or the file, before any solve ---------------
+
+def file_error(tmp_path: Path, content: bytes, *fragments: str) -> str:
+    path = tmp_path / "config.toml"
+    path.write_bytes(content)
+    with pytest.raises(ConfigError) as info:
+        load(path)
+    message = check_message(str(info.value), "config", str(path), *fragments)
+    assert len(message) < 300, message
+    return message
+
+
+def test_binary_config_file(tmp_path: Path) -> None:
+    file_error(tmp_path, b"\x91\x00\xff" + bytes(range(256)), "is a binary file", "UTF-8")
+
+
+def test_config_file_not_utf8(tmp_path: Path) -> None:
+    text = (EXAMPLES / "uniaxial.toml").read_text()
+    file_error(tmp_path, ("# d\xe9formation\n" + text).encode("latin-1"), "is not UTF-8 text", "byte 0xe9")
+    file_error(tmp_path, text.encode("utf-16"), "UTF-8")
+
+
+def test_config_nested_too_deeply(tmp_path: Path) -> None:
+    file_error(tmp_path, ("a = " + "[" * 5000 + "]" * 5000).encode(), "nested too deeply")
+
+
+def test_config_file_is_a_folder(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError) as info:
+        load(tmp_path)
+    check_message(str(info.value), "config", "is a folder")
+
+
+def test_override_nested_too_deeply() -> None:
+    from model.config.overrides import parse_assignments
+
+    with pytest.raises(ConfigError) as info:
+        parse_assignments(["boundary.0.value=" + "[" * 3000 + "]" * 3000])
+    message = check_message(str(info.value), "boundary[0].value", "nested too deeply")
+    assert len(message) < 300, message
+
+
+@pytest.mark.parametrize(("text", "fragment"), [
+    (" + ".join(["x[0]"] * 5000), "34997 characters, at most 10000"),
+    (" + ".join(["x[0]"] * 500), "nested 503 levels deep, at most 200"),
+    ("-" * 5000 + "x[0]", "nested too deeply to read"),
+    ("sin(" * 1000 + "x[0]" + ")" * 1000, "too many nested parentheses"),
+])
+def test_expression_too_deep_or_long(text: str, fragment: str) -> None:
+    raw = example("twisting_bar")
+    index = next(i for i, b in enumerate(raw["boundary"]) if "expression" in b)
+    raw["boundary"][index]["expression"][0] = text
+    message = parse_error(raw, f"boundary[{index}].expression[0]", "expression too deep/long", fragment)
+    assert len(message) < 300, message
+
+
+def test_expression_of_200_levels_is_accepted() -> None:
+    from model.config.expressions import compile_expression
+
+    assert compile_expression(" + ".join(["x[0]"] * 150))(np.ones((3, 2))).tolist() == [150.0, 150.0]
+
+
+@pytest.mark.parametrize("value", [1e308, -1e308, 1.0e10])
+def test_probe_coordinate_absurd(value: float) -> None:
+    parse_error(mutated(lambda raw: raw["probe"][0].__setitem__("point", [0.5, value, 0.5])), "probe[0].point[1]",
+                "out of range", "within +-1e+09")
+
+
+def test_format_length_of_inf() -> None:
+    from model.domain.probes import format_length
+
+    assert format_length(float("inf")) == "inf"
+    assert format_length(1.23e-4) == "1.2e-4"
+
+
+@pytest.mark.parametrize(("key", "value", "fragment"), [
+    ("steps", 9223372036854775808, "must be <= 100000"),
+    ("steps", 100_001, "must be <= 100000"),
+    ("max_cutbacks", 9223372036854775808, "must be <= 50"),
+    ("max_steps", 10**9, "must be <= 100000"),
+])
+def test_counts_have_a_maximum(key: str, value: int, fragment: str) -> None:
+    parse_error(mutated(set_in("loading", key, value)), f"loading.{key}", fragment)
+
+
+def test_time_steps_have_a_maximum() -> None:
+    raw = example("rotating_muscle")
+    raw["dynamics"]["dt"] = 1e-300
+    parse_error(raw, "dynamics.dt", "time steps, at most 100000")
+
+
+def test_misspelt_isotropic_key_is_named() -> None:
+    raw = example("isometric")
+    raw["material"][0]["isotropc"] = raw["material"][0].pop("isotropic")
+    parse_error(raw, "material[0].isotropc", "unknown parameter 'isotropc', did you mean 'isotropic'?")
+
+
+@pytest.mark.parametrize(("law", "guess"), [("neo_hokean", "neo_hookean"), ("Mooney_Rivlin", "mooney_rivlin"),
+                                            ("stvkk", "stvk")])
+def test_misspelt_law_did_you_mean(law: str, guess: str) -> None:
+    parse_error(mutated(set_in("material", "law", law, 0)), "material[0].law", f"{law!r} is not one of",
+                f"(did you mean {guess!r}?)")
+
+
+def test_misspelt_law_key_is_named() -> None:
+    raw = mutated(lambda raw: raw["material"][0].__setitem__("lwa", raw["material"][0].pop("law")))
+    parse_error(raw, "material[0].lwa", "unknown key, did you mean 'law'?")
+
+
+def test_misspelt_isotropic_value_did_you_mean() -> None:
+    raw = example("isometric")
+    raw["material"][0]["isotropic"] = "stvkk"
+    parse_error(raw, "material[0].isotropic", "'stvkk' is not one of mooney_rivlin, stvk (did you mean 'stvk'?)")
+
+
+def test_misspelt_kind_did_you_mean() -> None:
+    parse_error(mutated(set_in("boundary", "type", "displacemnt", 0)), "boundary[0].type",
+                "(did you mean 'displacement'?)")
+
+
+def test_nu_zero_in_the_mixed_formulation_is_named_nu() -> None:
+    raw = example("cook")
+    raw["material"][0]["nu"] = 0.0
+    parse_error(raw, "material[0].nu", "nu = 0.0 gives lmbda = 0", "mixed formulation")
+
+
+def test_output_dir_naming_a_file(tmp_path: Path) -> None:
+    (tmp_path / "taken").write_text("x")
+    parse_error(mutated(set_in("output", "dir", str(tmp_path / "taken"))), "output.dir", "is a file, not a folder")
+
+
+@pytest.mark.parametrize("cells", [[2**63, 4, 4], [10**6, 10**6, 10**6]])
+def test_generator_count_has_a_maximum(cells: list[int]) -> None:
+    build_error(mutated(set_in("mesh", "cells", cells)), "mesh.cells", "must be <= 10000")
+
+
+def test_turn_elements_has_a_maximum() -> None:
+    from meshes._validate import ParameterError
+    from meshes.arm_segment import check_turn_elements
+
+    with pytest.raises(ParameterError, match=r"turn_elements must be an integer in \[6, 10000\]"):
+        check_turn_elements("layered_arm", 2**63)

@@ -44,7 +44,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError, PydanticUndefined
 
-from model.errors import ConfigError
+from model.errors import ConfigError, closest, did_you_mean
 
 UNITS = ("Any consistent system of units, named by [units] system (nothing is converted): \"SI\", m (length), "
          "Pa (stress), N (force), s (time), kg/m^3 (mass density), J (energy), as in the examples; or \"mm-MPa\", "
@@ -137,6 +137,24 @@ Positive = Annotated[float, Strict(), AllowInfNan(False), Field(gt=0)]
 NonNegative = Annotated[float, Strict(), AllowInfNan(False), Field(ge=0)]
 #: a point or vector [x, y, z]
 Point = Annotated[tuple[Number, Number, Number], entries(3)]
+#: the largest coordinate of a position (1e9 m or mm: far beyond any body, well inside what a distance can square)
+MAX_COORDINATE = 1e9
+_COORDINATE = (f"{{input}} is out of range: a coordinate must be within +-{MAX_COORDINATE:.0e} (no body is that "
+               "large in any system of units)")
+#: a coordinate of a position in the body's space: finite and within +-MAX_COORDINATE
+Coordinate = Annotated[float, Strict(), AllowInfNan(False), Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE),
+                       Wording(greater_than_equal=_COORDINATE, less_than_equal=_COORDINATE)]
+#: a position [x, y, z] in the body's space (a probe point ...)
+Position = Annotated[tuple[Coordinate, Coordinate, Coordinate], entries(3)]
+
+#: the largest load step count, and the like: more would take longer than any run is meant to
+MAX_STEPS = 100_000
+_COUNT = "{input} is out of range, must be <= {le} (a larger count is a typo: no run takes that many)"
+
+
+def count(low: int, high: int = MAX_STEPS) -> Any:
+    """An integer count in [low, high]: steps, iterations, cut-backs (a huge one is refused, naming the key)."""
+    return Annotated[int, Strict(), Field(ge=low, le=high), Wording(less_than_equal=_COUNT)]
 
 
 def base_folder(info: ValidationInfo) -> Path:
@@ -489,7 +507,9 @@ def _explain(error: dict[str, Any], spot: Spot, root: Any) -> tuple[list[str | i
         table = spot.table
         allowed = ", ".join(sorted(table.toml_keys())) if table is not None else ""
         what = "unknown section" if len(parts) == 1 and table is root else "unknown key"
-        return parts, f"{what} (allowed: {allowed})"
+        guess = closest(str(parts[-1]), table.toml_keys()) if table is not None and parts else None
+        hint = f", did you mean {guess!r}?" if guess else ""
+        return parts, f"{what}{hint} (allowed: {allowed})"
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         by = _discriminator(spot.metadata)
         if not isinstance(value, dict):
@@ -503,12 +523,13 @@ def _explain(error: dict[str, Any], spot: Spot, root: Any) -> tuple[list[str | i
         given = value[name]
         if not isinstance(given, str):
             return [*parts, name], f"must be a string, got {given!r}"
-        return [*parts, name], f"{given!r} is not one of {tags}"
+        return [*parts, name], f"{given!r} is not one of {tags}{did_you_mean(given, [t for t, _ in _members(tp)])}"
     if kind == "literal_error":
         choices = _choices(tp) or []
         if choices and all(isinstance(c, str) for c in choices) and not isinstance(value, str):
             return parts, f"must be a string, got {value!r}"
-        return parts, f"{value!r} is not one of {', '.join(map(str, choices))}"
+        hint = did_you_mean(value, choices) if isinstance(value, str) else ""
+        return parts, f"{value!r} is not one of {', '.join(map(str, choices))}{hint}"
     if kind in ("tuple_type", "list_type"):
         if isinstance(value, dict) and len(parts) == 1 and spot.table is root:
             return parts, f"must be an array of tables ([[{parts[0]}]]), got a single table ([{parts[0]}])"
@@ -572,6 +593,7 @@ def validate(tp: Any, raw: Any, prefix: str = "", context: dict[str, Any] | None
         raise translate(err, tp, raw, prefix) from None
 
 
-__all__ = ["UNITS", "By", "ByPresence", "ExistingFile", "Flag", "Integer", "Name", "NonNegative", "Number",
-           "Point", "Positive", "Section", "Spot", "Text", "Variant", "Wording", "adapter", "base_folder", "entries",
-           "fail", "format_key", "interval", "key", "kinds", "locate", "meaning", "translate", "validate"]
+__all__ = ["MAX_COORDINATE", "MAX_STEPS", "UNITS", "By", "ByPresence", "Coordinate", "ExistingFile", "Flag",
+           "Integer", "Name", "NonNegative", "Number", "Point", "Position", "Positive", "Section", "Spot", "Text",
+           "Variant", "Wording", "adapter", "base_folder", "count", "entries", "fail", "format_key", "interval", "key",
+           "kinds", "locate", "meaning", "translate", "validate"]

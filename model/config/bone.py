@@ -13,6 +13,7 @@ from pydantic import Discriminator, Field, PlainValidator, PrivateAttr, Tag, Val
 from forms.motions import HingeMotion, Stationary, TransformTable
 from forms.obstacles import Capsule, Obstacle, Plane, Sphere
 from model.config.base import Name, Number, Point, Positive, Section, Wording, entries, fail, key
+from model.errors import did_you_mean
 
 # --- shapes ----------------------------------------------------------------------------------------------------------
 
@@ -28,7 +29,7 @@ def _obstacle(kind: Any, info: ValidationInfo) -> Obstacle | None:
     if not isinstance(kind, str):
         fail(f"must be a string, got {kind!r}")
     if kind not in SHAPE_KEYS:
-        fail(f"{kind!r} is not one of {', '.join(SHAPE_KEYS)}")
+        fail(f"{kind!r} is not one of {', '.join(SHAPE_KEYS)}{did_you_mean(kind, SHAPE_KEYS)}")
     data = info.data
     if any(k not in data for k in ALL_SHAPE_KEYS):
         return None  # a shape key is wrong: its own error is reported

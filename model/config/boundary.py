@@ -52,7 +52,7 @@ def _compiled(expressions: tuple[str, ...], parameters: dict[str, float]) -> tup
 
 
 QuadratureDegree = Annotated[
-    Annotated[Annotated[Integer, Field(ge=1)], Tag("degree")] | Annotated[Literal["vertex"], Tag("vertex")],
+    Annotated[Annotated[Integer, Field(ge=1, le=12)], Tag("degree")] | Annotated[Literal["vertex"], Tag("vertex")],
     Discriminator(lambda v: "vertex" if isinstance(v, str) else "degree"),
 ]
 

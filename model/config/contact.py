@@ -12,13 +12,13 @@ before any solve; ``bone`` against the [[bone]] tables and P1 (contact between b
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import model_validator
 
 from forms.obstacles import Plane, axis_of
-from model.config.base import By, Flag, Integer, Name, Point, Positive, Variant, fail, key, kinds, validate
+from model.config.base import By, Flag, Name, Point, Positive, Variant, count, fail, key, kinds, validate
 from model.config.bone import ALL_SHAPE_KEYS, ObstacleField, shape_keys_schema
 from model.config.boundary import QuadratureDegree
 
@@ -70,7 +70,7 @@ class ContactSpec(Variant):
     self_contact: Flag = key("the surface against itself (self-contact of one body: its nodes against its own deformed "
                              "triangles outside their neighbourhood, facing them; no master, obstacle or bone; "
                              "docs/layers.md)", default=False)
-    rings: Annotated[Integer, Field(ge=1)] | None = key(
+    rings: count(1, 1000) | None = key(
         "self_contact only: a node never pairs with a triangle that has a vertex within rings - 1 edges of it "
         "(default 2)", default=None)
     reach: Positive | None = key("self_contact only: the farthest master point a node pairs with (default: the "
@@ -83,7 +83,7 @@ class ContactSpec(Variant):
                           "below tolerance", default=False)
     tolerance: Positive = key("augmented only: largest penetration, relative to the body's size",
                               "dimensionless", default=1e-8)
-    max_uzawa: Annotated[Integer, Field(ge=1)] = key("augmented only: most Uzawa updates per load step", default=25)
+    max_uzawa: count(1) = key("augmented only: most Uzawa updates per load step", default=25)
     quadrature_degree: QuadratureDegree | None = key(
         "quadrature degree of the contact energy (default: discretization.quadrature_degree), or \"vertex\": the "
         "nodal rule, where the gaps are measured (P1 only)", default=None)

@@ -182,6 +182,10 @@ class RunConfig(Section):
                 fail(f"{m.law.name!r} has no volumetric term: the mixed formulation needs one (use formulation = "
                      "\"displacement\")", "material", i, "law")
             if formulation == "mixed" and m.law.bulk_penalty == 0:
+                given = m.given_parameters
+                if bulk not in given and "nu" in given:  # lmbda from E and nu: name the key the user wrote
+                    fail(f"nu = {given['nu']!r} gives {bulk} = 0: the mixed formulation (Taylor-Hood) needs a "
+                         f"volumetric term, nu > 0 (or give {bulk} > 0, inf for incompressible)", "material", i, "nu")
                 fail(f"{bulk} = 0: the mixed formulation needs a volumetric term, {bulk} > 0 (or inf for "
                      "incompressible)", "material", i, bulk)
         if solver.tangent == "projected" and formulation != "displacement":
@@ -221,12 +225,26 @@ def parse(raw: dict[str, Any], base: Path = Path(".")) -> RunConfig:
 def read(path: str | Path) -> dict[str, Any]:
     """The parsed TOML document of a configuration file (ConfigError naming the file when unreadable)."""
     path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"config: {path} is a folder, not a configuration file")
     if not path.is_file():
         raise ConfigError(f"config: no such file: {path}")
     try:
-        return tomllib.loads(path.read_text())
+        data = path.read_bytes()
+    except OSError as err:
+        raise ConfigError(f"config: cannot read {path}: {err.strerror or err}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        what = "a binary file" if b"\0" in data[:4096] else "not UTF-8 text"
+        raise ConfigError(f"config: {path} is {what} (byte 0x{data[err.start]:02x} at offset {err.start}): a "
+                          "configuration is a TOML file in UTF-8") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"config: {path}: invalid TOML: {err}") from None
+        raise ConfigError(f"config: {path}: invalid TOML: {' '.join(str(err).split())}") from None
+    except RecursionError:
+        raise ConfigError(f"config: {path}: invalid TOML: arrays or tables nested too deeply") from None
 
 
 def load(path: str | Path, overrides: dict[str, Any] | None = None) -> RunConfig:

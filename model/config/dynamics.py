@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import model_validator
 
-from model.config.base import NonNegative, Number, Positive, Section, entries, fail, interval, key, validate
+from model.config.base import MAX_STEPS, NonNegative, Number, Positive, Section, entries, fail, interval, key, validate
 
 #: time-integration schemes of model.solvers.dynamics.Dynamics
 SCHEMES = ("backward_euler", "newmark", "generalized_alpha")
@@ -71,6 +71,9 @@ class DynamicsSpec(Section):
             return self
         if self.dt is None:
             fail(f"missing: scheme = \"{self.scheme}\" needs a time step", "dt")
+        if self.end_time / self.dt > MAX_STEPS:
+            fail(f"{self.dt!r} gives end_time / dt = {self.end_time / self.dt:.3g} time steps, at most {MAX_STEPS}",
+                 "dt")
         if "rho_infinity" in given and self.scheme != "generalized_alpha":
             fail(f"only applies to scheme = \"generalized_alpha\", not \"{self.scheme}\"", "rho_infinity")
         return self

@@ -6,7 +6,12 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from model.config.base import Integer, Number, Point, Section, Text, key
+from model.config.base import MAX_STEPS, Number, Point, Section, Text, count, key
+
+#: the most halvings of a load step in a row
+MAX_CUTBACKS = 50
+Steps = count(1)
+Cutbacks = count(0, MAX_CUTBACKS)
 
 
 class LoadingConfig(Section):
@@ -18,9 +23,10 @@ class LoadingConfig(Section):
     volume control prescribes the volume of the cavity of the pressure boundary ``volume_boundary``, from its
     rest volume to ``volume_ratio`` times it in ``steps`` steps, and the pressure is the unknown."""
 
-    steps: Annotated[Integer, Field(ge=1)] = key("number of equal load steps from t = 0 to t = 1", default=1)
-    max_cutbacks: Annotated[Integer, Field(ge=0)] = key(
-        "how many times in a row a failed step may be halved before the run gives up", default=8)
+    steps: Steps = key(f"number of equal load steps from t = 0 to t = 1 (at most {MAX_STEPS})", default=1)
+    max_cutbacks: Cutbacks = key(
+        f"how many times in a row a failed step may be halved before the run gives up (at most {MAX_CUTBACKS}: "
+        "2^-50 of a step is below the load factor's rounding)", default=8)
     growth: Annotated[Number, Field(ge=1)] = key(
         "factor by which the step grows after a converged cut-back step (up to the nominal step)", "dimensionless",
         default=1.5)
@@ -29,10 +35,10 @@ class LoadingConfig(Section):
         "factor is an unknown, the path is followed past load maxima with Crisfield's arc length until it reaches "
         "1), \"volume\" (the cavity volume of volume_boundary is prescribed, its pressure is the unknown)",
         default="load")
-    max_steps: Annotated[Integer, Field(ge=1, le=1_000_000)] | None = key(
+    max_steps: Steps | None = key(
         "the most steps (converged and failed) the run may take before it stops as failed (bounded work: "
         "cut-backs and regrowth cannot go on for ever); default: 200 with control = \"arc_length\", "
-        "10 x steps + 100 otherwise", default=None)
+        f"10 x steps + 100 otherwise (at most {MAX_STEPS})", default=None)
     volume_boundary: Text | None = key(
         "control = \"volume\": the boundary with the pressure whose cavity volume is prescribed", default=None)
     volume_ratio: Annotated[Number, Field(gt=0)] | None = key(

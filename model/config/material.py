@@ -44,6 +44,7 @@ from model.config.base import (
     key,
     kinds,
 )
+from model.errors import closest, did_you_mean
 
 LAW_NAMES = tuple(sorted(forms.LAWS))
 #: law = "FILE.py:FUNCTION" (or "FILE.py", FUNCTION = psi): a law of the user's own
@@ -83,6 +84,23 @@ def _parameter_key(message: str, params: dict[str, Any]) -> tuple[str, ...]:
     return ()
 
 
+def _misspelt_parameter(message: str, params: dict[str, Any], entry: forms.LawEntry) -> str:
+    """A law's "unknown parameter 'E' (allowed: ...)" about the key most likely misspelt instead, with the name it
+    misspells: a misspelt ``isotropic`` leaves the muscle its default isotropic part, which then refuses the E and
+    nu meant for the other; the user wrote 'isotropc', not 'E'."""
+    match = re.match(r"unknown parameter '(\w+)' \(allowed: (.*)\)$", message)
+    if not match:
+        return message
+    allowed = [a.strip() for a in match.group(2).split(",")]
+    names = list(dict.fromkeys([*allowed, *(p.name for p in entry.parameters), *MaterialConfig.toml_keys()]))
+    unknown = [k for k in params if k not in allowed]
+    for k in unknown:
+        guess = closest(k, [n for n in names if n not in params])
+        if guess is not None:
+            return f"unknown parameter {k!r}, did you mean {guess!r}? (allowed: {match.group(2)})"
+    return message
+
+
 def _user_law(name: str, info: ValidationInfo) -> forms.LawEntry | None:
     """The entry of a law of the user's own, ``law = "FILE.py:FUNCTION"`` (FILE relative to the config file)."""
     path = name.rpartition(":")[0] if ":" in name else name
@@ -102,19 +120,25 @@ def _make_law(value: Any, info: ValidationInfo) -> forms.Law:
         return value
     name, params = (value.name, value.parameters) if isinstance(value, LawInput) else (value, {})
     if name is None:
+        for k in params:  # a misspelt "law" key
+            if closest(k, ["law"]):
+                fail(f"unknown key, did you mean 'law'? (a material needs law = one of {', '.join(LAW_NAMES)})", k,
+                     up=1)
         fail(f"missing (one of {', '.join(LAW_NAMES)}, or \"FILE.py:FUNCTION\" for a law of your own)")
     if not isinstance(name, str):
         fail(f"must be a string, got {name!r}")
     entry = forms.REGISTRY.get(name) or _user_law(name, info)
     if entry is None:
-        fail(f"{name!r} is not one of {', '.join(LAW_NAMES)} (or \"FILE.py:FUNCTION\" for a law of your own)")
+        fail(f"{name!r} is not one of {', '.join(LAW_NAMES)} (or \"FILE.py:FUNCTION\" for a law of your own)"
+             f"{did_you_mean(name, LAW_NAMES)}")
     if "isotropic" in params and name in ("muscle", "tendon"):
         from forms.muscle import ISOTROPIC
 
         if not isinstance(params["isotropic"], str):
             fail(f"must be a string, got {params['isotropic']!r}", "isotropic", up=1)
         if params["isotropic"] not in ISOTROPIC:
-            fail(f"{params['isotropic']!r} is not one of {', '.join(ISOTROPIC)}", "isotropic", up=1)
+            fail(f"{params['isotropic']!r} is not one of {', '.join(ISOTROPIC)}"
+                 f"{did_you_mean(params['isotropic'], ISOTROPIC)}", "isotropic", up=1)
 
     words = {p.name for p in entry.parameters if p.choices}  # a choice: isotropic, variant
 
@@ -128,7 +152,7 @@ def _make_law(value: Any, info: ValidationInfo) -> forms.Law:
     try:
         law = entry.make(**params)
     except forms.ParameterError as err:
-        message = str(err).removeprefix(f"{name}: ")
+        message = _misspelt_parameter(str(err).removeprefix(f"{name}: "), params, entry)
         if not message.startswith("unknown parameter"):
             check_numbers()
         fail(f"{name}: {message}", *_parameter_key(message, params), up=1)

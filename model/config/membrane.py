@@ -51,6 +51,7 @@ from model.config.base import (
     Point,
     Positive,
     Section,
+    count,
     fail,
     interval,
     key,
@@ -141,7 +142,7 @@ class MembraneSection(Section):
                             "N_vertex (see centre, radius; N_vertex the nodes' oriented normals); the equilibria do "
                             "not depend on it",
                             "dimensionless", default=0.05)
-    quadrature_degree: Annotated[Integer, Field(ge=1)] = key("quadrature degree of the membrane energy",
+    quadrature_degree: Annotated[Integer, Field(ge=1, le=12)] = key("quadrature degree of the membrane energy",
                                                               default=2)
 
     @model_validator(mode="after")
@@ -190,7 +191,7 @@ class InflationSection(Section):
 
     pressure: Positive | None = key("the last pressure of the ramp p_k = pressure k / steps", "Pa (stress)",
                                     default=None)
-    steps: Annotated[Integer, Field(ge=1)] | None = key("pressure only: the ramp's equal increments (default 5)",
+    steps: count(1) | None = key("pressure only: the ramp's equal increments (default 5)",
                                                         default=None)
     pressures: Annotated[tuple[Positive, ...], Field(min_length=1)] | None = key(
         "the pressures, increasing, one equilibrium each", "Pa (stress)", default=None)
@@ -202,9 +203,9 @@ class InflationSection(Section):
         "[[obstacle]]", "dimensionless", default=None)
     dp: Positive | None = key("target_volume / contact_fraction: the pressure increment (default 0.05 w'(1.1) / "
                               "radius, w' the law's equibiaxial dw/dlambda)", "Pa (stress)", default=None)
-    max_steps: Annotated[Integer, Field(ge=1)] = key("target_volume / contact_fraction: most increments of dp",
+    max_steps: count(1) = key("target_volume / contact_fraction: most increments of dp",
                                                      default=200)
-    cutbacks: Annotated[Integer, Field(ge=0)] = key("halvings of a pressure increment whose Newton fails",
+    cutbacks: count(0, 50) = key("halvings of a pressure increment whose Newton fails",
                                                     default=4)
     freeze_on_contact: Flag = key(
         "the thesis' per-node pressure: a node that touches an [[obstacle]] or a [[contact]] keeps the pressure of "
@@ -315,7 +316,7 @@ class ContactSection(Section):
     self_contact: Flag = key("the surface region against itself (self-contact of one membrane: its nodes against its "
                              "own deformed triangles outside their neighbourhood, on the side each node lay at rest; "
                              "no master; penalty only; docs/membranes.md)", default=False)
-    rings: Annotated[Integer, Field(ge=1)] | None = key(
+    rings: count(1, 1000) | None = key(
         "self_contact only: a node never pairs with a triangle that has a vertex within rings - 1 edges of it "
         "(default 2)", default=None)
     reach: Positive | None = key("self_contact only: the farthest master point a node pairs with (default: the "
@@ -432,7 +433,7 @@ class MuscleSection(Section):
     activation: Annotated[Number, *interval(0.0, 1.0, "(]")] = key(
         "the activation reached at the end of the muscle run (ramped linearly from 0)", "dimensionless",
         default=1.0)
-    steps: Annotated[Integer, Field(ge=1)] = key("load steps of the muscle run", default=4)
+    steps: count(1) = key("load steps of the muscle run", default=4)
     degree: Annotated[Integer, Field(ge=1, le=2)] = key("the muscle run's displacement degree (1 or 2)", default=1)
     fixed: Annotated[tuple[Literal[MUSCLE_BOUNDARIES], ...], Field(min_length=1)] = key(
         "the boundaries of the muscle run held in place: [\"origin\", \"insertion\"] an isometric contraction, "

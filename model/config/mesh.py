@@ -9,6 +9,7 @@ from typing import Any
 from pydantic import ValidationInfo, field_validator, model_validator
 
 from model.config.base import ByPresence, ExistingFile, Integer, Name, Number, Text, Variant, fail, key, kinds
+from model.errors import closest, did_you_mean
 
 _FILE_KEYS = ("regions", "boundaries", "cell_data", "facet_data", "parameters")
 #: files that name their regions and boundaries by their physical groups
@@ -99,7 +100,7 @@ class GeneratedMesh(MeshConfig):
         from meshes import GENERATORS
 
         if name not in GENERATORS:
-            fail(f"{name!r} is not one of {', '.join(sorted(GENERATORS))}")
+            fail(f"{name!r} is not one of {', '.join(sorted(GENERATORS))}{did_you_mean(name, GENERATORS)}")
         return name
 
     @field_validator("params")
@@ -112,7 +113,9 @@ class GeneratedMesh(MeshConfig):
             accepted = generator_parameters(name)
             for parameter in params:
                 if parameter not in accepted:
-                    fail(f"unknown parameter of generator {name!r} (allowed: generator, {', '.join(accepted)})",
+                    guess = closest(parameter, accepted)
+                    hint = f", did you mean {guess!r}?" if guess else ""
+                    fail(f"unknown parameter of generator {name!r}{hint} (allowed: generator, {', '.join(accepted)})",
                          parameter, up=1)
         return params
 

@@ -83,12 +83,15 @@ def parse_value(text: str, key: str | None = None) -> Any:
     where = f"{key}: " if key else ""
     if not text.strip():
         raise ConfigError(f"{where}no value after \"=\" (write KEY=VALUE, {_EXAMPLE})")
+    shown = repr(text) if len(text) <= 80 else f"{text[:60]!r}... ({len(text)} characters)"
     try:
         return tomllib.loads(f"value = {text}")["value"]
+    except RecursionError:
+        raise ConfigError(f"{where}cannot read the value {shown} as TOML: arrays or tables nested too deeply") from None
     except tomllib.TOMLDecodeError:
         if _BARE.fullmatch(text.strip()):
             return text.strip()
-        raise ConfigError(f"{where}cannot read the value {text!r} as TOML (write it like 1e5, true, \"text\", "
+        raise ConfigError(f"{where}cannot read the value {shown} as TOML (write it like 1e5, true, \"text\", "
                           "[1, 2] or {a = 1})") from None
 
 

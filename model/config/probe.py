@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from model.config.base import Flag, Name, Point, Section, key
+from model.config.base import Flag, Name, Position, Section, key
 
 
 class ProbeConfig(Section):
@@ -11,6 +11,7 @@ class ProbeConfig(Section):
     with its distance to the body and the body's nearest point, or moved there with ``snap = true``."""
 
     name: Name = key("name of the probe in the results (unique)")
-    point: Point = key("position [x, y, z] in the reference configuration", "m (length)")
+    point: Position = key("position [x, y, z] in the reference configuration (each coordinate within +-1e9)",
+                          "m (length)")
     snap: Flag = key("a point outside the body is moved to the nearest point of the body's surface (logged, "
                      "and recorded in summary.json's probe_points) instead of being refused", default=False)

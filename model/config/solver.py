@@ -4,9 +4,23 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, Discriminator, Field, Tag, WithJsonSchema
+from pydantic import AfterValidator, Discriminator, Tag, WithJsonSchema
 
-from model.config.base import By, Flag, Integer, NonNegative, Number, Text, Variant, Wording, fail, interval, key, kinds
+from model.config.base import (
+    By,
+    Flag,
+    Integer,
+    NonNegative,
+    Number,
+    Text,
+    Variant,
+    Wording,
+    count,
+    fail,
+    interval,
+    key,
+    kinds,
+)
 
 SOLVER_METHODS = ("newton", "projective_dynamics")
 TANGENTS = ("exact", "projected")
@@ -77,7 +91,7 @@ class SolverConfig(Variant):
     petsc_options: PetscOptions = key(
         "PETSc options without their leading '-', e.g. { snes_rtol = 1e-8, ksp_type = \"preonly\" }",
         default_factory=dict)
-    pd_max_iterations: Annotated[Integer, Field(ge=1)] = key(
+    pd_max_iterations: count(1, 1_000_000) = key(
         "Projective Dynamics: most global steps per load step", default=1000)
     pd_rtol: Annotated[Number, *interval(0, 1, "()")] = key(
         "Projective Dynamics: stop when the residual norm falls below pd_rtol times its value at the start of the "

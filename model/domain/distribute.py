@@ -22,6 +22,7 @@ from mpi4py import MPI
 from meshes import MeshData
 from meshes.gingerbread import PlanarMeshData
 from model import compat
+from model.errors import did_you_mean
 
 
 @dataclass
@@ -56,7 +57,8 @@ class Domain:
             return None
         if name in self.empty_regions:
             return f"region {name!r} is empty (the physical group exists in mesh.file but holds no cells)"
-        return f"no region named {name!r} in the mesh (regions: {', '.join(['all', *sorted(self.regions)])})"
+        hint = did_you_mean(name, ["all", *self.regions, *self.empty_regions])
+        return f"no region named {name!r} in the mesh{hint} (regions: {', '.join(['all', *sorted(self.regions)])})"
 
     def boundary_error(self, name: str) -> str | None:
         """Why ``name`` cannot be used as a boundary (the message after the key), or None if it can."""
@@ -64,7 +66,9 @@ class Domain:
             return None
         if name in self.empty_boundaries:
             return f"boundary {name!r} is empty (the physical group exists in mesh.file but holds no facets)"
-        return f"no boundary named {name!r} in the mesh (boundaries: {', '.join(sorted(self.boundaries)) or 'none'})"
+        hint = did_you_mean(name, [*self.boundaries, *self.empty_boundaries])
+        return (f"no boundary named {name!r} in the mesh{hint} (boundaries: "
+                f"{', '.join(sorted(self.boundaries)) or 'none'})")
 
 
 def _combine(entities: np.ndarray, tags: np.ndarray, names: dict[str, int]

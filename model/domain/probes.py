@@ -14,6 +14,7 @@ triangles, and the minimum over the ranks (the lowest rank wins a tie, so every 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -141,7 +142,9 @@ def nearest_surface_points(msh: dmesh.Mesh, points: np.ndarray) -> tuple[np.ndar
 
 
 def format_length(value: float) -> str:
-    """A length in two significant digits, e.g. 1.2e-4 (no padded exponent)."""
+    """A length in two significant digits, e.g. 1.2e-4 (no padded exponent); inf or nan as such."""
+    if not math.isfinite(value):
+        return str(value)
     mantissa, exponent = f"{value:.1e}".split("e")
     return f"{mantissa}e{int(exponent)}"
 
