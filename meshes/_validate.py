@@ -13,8 +13,11 @@ from numbers import Integral, Real
 
 #: the largest count a generator takes (cells along an edge, divisions ...)
 MAX_COUNT = 10_000
+#: the most hexahedra (before the split into tetrahedra) a block generator makes: 5e7 x 6 tetrahedra, about 3e8
+#: unknowns, more than the 24 GB of the machines this runs on hold (1e6 unknowns took 7.3 GB on 2 ranks)
+MAX_CELLS = 50_000_000
 
-__all__ = ["MAX_COUNT", "ParameterError", "positive_float", "positive_floats", "positive_int", "positive_ints"]
+__all__ = ["MAX_CELLS", "MAX_COUNT", "ParameterError", "positive_float", "positive_floats", "positive_int", "positive_ints"]
 
 
 class ParameterError(ValueError, TypeError):
@@ -65,4 +68,8 @@ def positive_floats(generator: str, name: str, value: object, length: int) -> tu
 def positive_ints(generator: str, name: str, value: object, length: int) -> tuple[int, ...]:
     """Validate a sequence of ``length`` integers >= 1 and return it as a tuple of ints."""
     entries = _entries(generator, name, value, length)
-    return tuple(positive_int(generator, f"{name}[{i}]", v) for i, v in enumerate(entries))
+    counts = tuple(positive_int(generator, f"{name}[{i}]", v) for i, v in enumerate(entries))
+    if name == "cells" and math.prod(counts) > MAX_CELLS:
+        raise ParameterError(f"{generator}: {name} {list(counts)} make {math.prod(counts):.3g} cells, more than "
+                             f"{MAX_CELLS:.0e}: far beyond the memory of a workstation")
+    return counts

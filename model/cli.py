@@ -10,7 +10,9 @@ interrupted by SIGINT / SIGTERM (results kept, summary.json "interrupted"; conti
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
 the table was produced (a disagreement is a finding, not a failure). sweep: 0 every run completed, 1 some
 failed (the table is written), 2 bad input. converge: 0 written, 1 fewer than 3 meshes ran, 2 bad input.
-Any command stopped by SIGINT / SIGTERM before its work began: 130 / 143 and one line (model.signals).
+Any command stopped by SIGINT / SIGTERM before its work began: 130 / 143 and one line (model.signals). Any
+command that meets a bug of this program: 3 and one line naming the file that holds the traceback
+(SOFTTISSUE_TRACEBACK=1 shows it instead). A write the system refuses (a full disk): 1 and one line naming the path.
 
 Start-up order, for a quick answer to a bad input: the signal handlers first (model.signals: the imports take
 seconds); only the parser of the command given (verify's imports forms, UFL and mpi4py); for ``run`` the
@@ -146,11 +148,33 @@ def main(argv: list[str] | None = None, prog: str = "softtissue") -> int:
     except signals.StoppedEarly as err:  # before a run's steps: imports, configuration (model.signals)
         _error(str(err))
         return 128 + err.signum
+    except Exception as err:  # a bug: one line on the screen, the traceback in a file (no input should get here)
+        if os.environ.get("SOFTTISSUE_TRACEBACK"):
+            raise
+        _error(f"internal error (a bug of this program: please report it with {_save_traceback()}): "
+               f"{type(err).__name__}: {' '.join(str(err).split())[:300]}")
+        return 3
     finally:
         signals.restore(previous)
 
 
+def _save_traceback() -> str:
+    """Write the traceback being handled to a file of its own in the temporary folder; its path."""
+    import tempfile
+    import traceback
+
+    with tempfile.NamedTemporaryFile("w", prefix="softtissue-traceback-", suffix=".txt", delete=False) as f:
+        traceback.print_exc(file=f)
+    return f.name
+
+
 def _main(argv: list[str], prog: str) -> int:
+    for i, arg in enumerate(argv, start=1):  # bytes the locale could not decode (dolfinx's logging chokes on them)
+        try:
+            arg.encode("utf-8")
+        except UnicodeEncodeError:
+            _error(f"argument {i} ({arg.encode('utf-8', 'backslashreplace').decode()!r}) is not UTF-8 text")
+            return 2
     command = _command(argv)
     args = _parser(prog, command if command is not None or "--version" not in argv else "run").parse_args(argv)
     if args.command == "schema":

@@ -64,7 +64,7 @@ SMALL = ("uniaxial", "cook", "twisting_bar", "guccione_beam", "contact_block")
 #: appended to a solid run: one load step, no picture or time series (keeps a case that runs short)
 SHORT = ("--set", "loading.steps=1", "--set", "output.png=false", "--set", "output.vtu=false",
          "--set", "output.xdmf=false")
-FAILING = ("traceback", "hang", "crash", "silent exit 0 on bad input")
+FAILING = ("traceback", "internal error", "hang", "crash", "silent exit 0 on bad input")
 CLASSES = ("one-line error", "usage error", "ran", "solve failed", *FAILING, "unclear exit")
 KINDS = ("type", "range", "count", "name", "removed", "mesh", "config", "cli", "expression", "valid")
 
@@ -556,6 +556,8 @@ def classify(expect: str, code: int | None, stderr: str, timed_out: bool) -> str
         return "traceback"
     lines = [line for line in stderr.splitlines() if line.strip()]
     errors = [line for line in lines if line.startswith("error: ")]
+    if code == 3 and any(line.startswith("error: internal error") for line in errors):
+        return "internal error"  # a bug the command line caught: its traceback is in a file
     if code == 0:
         return "silent exit 0 on bad input" if expect == "bad" else "ran"
     if code == 2 and len(errors) == 1 and lines[-1] == errors[0]:
