@@ -473,4 +473,8 @@ def write_vtu(path: Path, data: dict[str, np.ndarray]) -> None:
     cell_data = {k: [np.asarray(v)] for k, v in data.items() if k not in ("points", "cells", "u")}
     mesh = meshio.Mesh(data["points"], [("tetra", data["cells"])], point_data={"u": data["u"]},
                        cell_data=cell_data)
-    mesh.write(path)
+    try:
+        mesh.write(path)
+    except OSError as err:  # a full disk: no half file, and the error names it
+        discard(path)
+        raise named(err, path) from None

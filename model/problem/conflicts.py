@@ -80,8 +80,9 @@ def _size(problem: ElasticityProblem) -> float:
     msh = problem.domain.mesh
     comm = msh.comm
     x = msh.geometry.x
-    low = comm.allreduce(x.min(axis=0) if len(x) else np.full(3, np.inf), op=MPI.MIN)
-    high = comm.allreduce(x.max(axis=0) if len(x) else np.full(3, -np.inf), op=MPI.MAX)
+    low, high = np.empty(3), np.empty(3)
+    comm.Allreduce(x.min(axis=0) if len(x) else np.full(3, np.inf), low, op=MPI.MIN)
+    comm.Allreduce(x.max(axis=0) if len(x) else np.full(3, -np.inf), high, op=MPI.MAX)
     return float(np.linalg.norm(high - low))
 
 
@@ -137,6 +138,8 @@ def _facet_normals(problem: ElasticityProblem, facets: np.ndarray) -> np.ndarray
     msh = problem.domain.mesh
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, 0)
+    if len(facets) == 0:
+        return np.zeros((0, 3))
     nodes = compat.entity_geometry(msh, tdim - 1, facets)
     x = msh.geometry.x[nodes]
     if tdim == 3:
@@ -167,12 +170,13 @@ def _dropped_loads(problem: ElasticityProblem, conditions: Sequence[Condition], 
                     continue
                 what = f"its t_{'/'.join(AXES[c] for c in dropped)}"
             else:
-                normals = _facet_normals(problem, shared)[:, fixed] if len(shared) else np.zeros((0, len(fixed)))
+                normals = _facet_normals(problem, shared)[:, fixed]  # collective (the connectivity), even if empty
                 along = float((normals**2).sum(axis=1).max(initial=0.0))
                 if comm.allreduce(along, op=MPI.MAX) <= 1e-6:
                     continue
                 what = "the part of the pressure along the prescribed " + "/".join(AXES[c] for c in fixed)
-            count = comm.allreduce(len(shared), op=MPI.SUM)
+            owned = problem.domain.mesh.topology.index_map(problem.domain.mesh.topology.dim - 1).size_local
+            count = comm.allreduce(int(np.count_nonzero(shared < owned)), op=MPI.SUM)  # ghosts counted once
             raise ConfigError(
                 f"{load.key} and {condition.key}: the load on {load.on!r} and the condition on "
                 f"{condition.entry.name!r} share {count} facets, where u_{'/'.join(AXES[c] for c in fixed)} is "
