@@ -45,6 +45,8 @@ def test_classification() -> None:
     assert fuzz.classify("bad", 2, "scale check: ...\nerror: mesh.file: cannot read x\n", False) == "one-line error"
     assert fuzz.classify("bad", 1, "Traceback (most recent call last):\n  ...\nValueError: x\n", False) == "traceback"
     assert fuzz.classify("bad", 59, "[0]PETSC ERROR: --- Error Message ---\n", False) == "traceback"
+    assert fuzz.classify("bad", 3, "error: internal error (a bug of this program: please report it with "
+                                   "/tmp/t.txt): TypeError: x\n", False) == "internal error"
     assert fuzz.classify("bad", None, "", True) == "hang"
     assert fuzz.classify("bad", -11, "", False) == "crash"
     assert fuzz.classify("bad", 0, "", False) == "silent exit 0 on bad input"

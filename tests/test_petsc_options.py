@@ -173,3 +173,18 @@ def test_command_line_bad_value(tmp_path: Path, key: str, text: str) -> None:
     assert "removed" not in result.stdout and "PETSC ERROR" not in result.stdout  # only the build's log lines
     assert untouched(out)
     assert time.perf_counter() - start < 60
+
+
+def test_viewer_options_take_true_or_a_viewer() -> None:
+    """``snes_monitor = true`` (TOML's natural spelling) switches the monitor on (PETSc itself would stop with
+    "Unsupported viewer true"); false leaves it out; a value that is no viewer is one line naming the key."""
+    from model.errors import ConfigError
+    from model.solvers.options import check_option_values, is_viewer, petsc_value
+
+    assert is_viewer("snes_monitor") and is_viewer("ksp_monitor_true_residual") and is_viewer("fieldsplit_u_ksp_view")
+    assert not is_viewer("snes_monitor_cancel") and not is_viewer("ksp_type")
+    assert petsc_value("snes_monitor", True) == "" and petsc_value("ksp_view", False) is None
+    assert petsc_value("snes_rtol", 1e-8) == 1e-8
+    check_option_values({"snes_monitor": True, "ksp_view": "ascii:ksp.txt", "snes_converged_reason": ""})
+    with pytest.raises(ConfigError, match=r"^solver.petsc_options.snes_monitor: 'yes please' is not a PETSc viewer"):
+        check_option_values({"snes_monitor": "yes please"})

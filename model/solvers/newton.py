@@ -58,6 +58,7 @@ from model import compat
 from model.problem import ElasticityProblem
 from model.problem.admissibility import Admissibility
 from model.solvers import linear
+from model.solvers.options import petsc_value
 
 log = logging.getLogger(__name__)
 
@@ -386,7 +387,9 @@ class NewtonSolver:
         self.user_options = list(options or {})
         db = PETSc.Options()
         for key, value in self.options.items():
-            db[f"{self.prefix}{key}"] = value
+            value = petsc_value(key, value)  # a viewer switched on by true (options.petsc_value)
+            if value is not None:
+                db[f"{self.prefix}{key}"] = value
         self.snes.setOptionsPrefix(self.prefix)
         self.snes.setFromOptions()
         # fieldsplit (mixed formulation): the u and p index sets, the u block's near null space, Schur's Sp

@@ -33,6 +33,7 @@ import difflib
 import functools
 import logging
 import math
+import re
 from collections.abc import Iterator, Mapping
 
 from petsc4py import PETSc
@@ -230,10 +231,44 @@ def _check_boolean(key: str, value: Value) -> None:
     raise ConfigError(f"solver.petsc_options.{key}: {value!r} is not a boolean (true or false)")
 
 
+#: options whose value is a PETSc viewer ("-snes_monitor", "-ksp_view ascii:file.txt", ...)
+_VIEWER = re.compile(r"(^|_)(monitor|view|converged_reason)(_true_residual|_short|_singular_value|_solution|_residual"
+                     r"|_lg_residualnorm)?$")
+#: the viewer types a viewer option's value may start with ("type:file:format:mode"; "" is standard output)
+VIEWER_TYPES = ("", "ascii", "stdout", "stderr", "draw", "binary", "hdf5", "vtk", "socket", "saws", "glvis", "matlab",
+                "adios")
+
+
+def is_viewer(key: str) -> bool:
+    """Whether option ``key`` takes a PETSc viewer as its value (a monitor, a view, a converged reason)."""
+    return _VIEWER.search(key) is not None
+
+
+def petsc_value(key: str, value: Value) -> Value | None:
+    """The value to put in PETSc's options database for ``key``: a viewer option given as a boolean (TOML's
+    ``snes_monitor = true``) is switched on by the empty value (PETSc reads "true" as a viewer's name and stops
+    with "Unsupported viewer true") or left out (false, None); other values as they are."""
+    if is_viewer(key) and isinstance(value, bool):
+        return "" if value else None
+    return value
+
+
+def _check_viewer(key: str, value: Value) -> None:
+    if isinstance(value, bool):
+        return
+    kind = str(value).split(":", 1)[0].strip().lower()
+    if kind not in VIEWER_TYPES:
+        raise ConfigError(f"solver.petsc_options.{key}: {value!r} is not a PETSc viewer (true, or \"TYPE[:FILE]\" "
+                          f"with TYPE one of {', '.join(t for t in VIEWER_TYPES if t)})")
+
+
 def check_option_values(options: Mapping[str, Value]) -> None:
     """ConfigError ``solver.petsc_options.KEY: ...`` (one line) for the first option whose value PETSc would
     refuse or that is out of range (module docstring); options not recognised by ``component`` pass."""
     for key, value in options.items():
+        if is_viewer(key):
+            _check_viewer(key, value)
+            continue
         option = component(key)
         if option is None:
             continue
@@ -247,4 +282,5 @@ def check_option_values(options: Mapping[str, Value]) -> None:
 
 
 __all__ = ["BOOLEAN_OPTIONS", "FACTOR_PACKAGES", "LINE_SEARCHES", "TOLERANCES", "TYPE_OPTIONS",
-           "check_option_values", "component", "known_factor_package", "known_type", "quiet_petsc", "type_names"]
+           "check_option_values", "component", "is_viewer", "known_factor_package", "known_type", "petsc_value",
+           "quiet_petsc", "type_names"]
