@@ -647,10 +647,14 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     from model.solvers.scale import scale_check
 
     _check_matrix(problem, config, setup.contacts)  # [solver] matrix = "nest" where it cannot serve: before any solve
-    if not config.solver.allow_rigid_modes and not (config.dynamics is not None and config.dynamics.is_dynamic):
+    support_warnings: list[str] = []
+    if config.solver.allow_rigid_modes:
+        support_warnings.append("the support check was skipped (solver.allow_rigid_modes = true): a rigid-body mode "
+                                "nothing holds is not removed, and makes the Newton matrix singular")
+    elif not (config.dynamics is not None and config.dynamics.is_dynamic):
         from model.problem.supports import check_supports  # every mesh piece held (a dynamic run needs no supports)
 
-        check_supports(problem, setup.contacts, setup.sliding)
+        support_warnings = check_supports(problem, setup.contacts, setup.sliding)
     scale = scale_check(problem, config)  # before any solve: loads, moduli and size against the units
     dynamic = config.dynamics is not None and config.dynamics.is_dynamic
     if dynamic and config.dynamics.initial == "equilibrium" and earlier is None:
@@ -701,7 +705,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
         summary["restarts"] = [*earlier.get("restarts", []), {"from_step": checkpoint["step"], **where}]
         previous_time = float(earlier.get("wall_time_s", 0.0))
     summary["scale_check"] = scale.figures
-    summary.setdefault("warnings", []).extend(scale.warnings)
+    summary.setdefault("warnings", []).extend([*support_warnings, *scale.warnings])
     if dynamic:
         spec = config.dynamics
         summary["dynamics"] = {"scheme": spec.scheme, "dt": spec.dt, "end_time": spec.end_time,

@@ -131,7 +131,8 @@ def test_sliding_on_a_bone_holds_the_normal() -> None:
 
 def test_allow_rigid_modes_and_dynamics_skip_the_check(shared_tmp: Path) -> None:
     """[solver] allow_rigid_modes = true: no ConfigError (the solve is the user's; with MUMPS the singular system
-    fails or drifts: either is accepted here). A dynamic run needs no support: a free box accelerates."""
+    fails or drifts: either is accepted here), and summary.json's warnings say the check was skipped. A dynamic run
+    needs no support: a free box accelerates."""
     from model.errors import SolveFailed
 
     raw = box(cells=1)
@@ -141,6 +142,10 @@ def test_allow_rigid_modes_and_dynamics_skip_the_check(shared_tmp: Path) -> None
         run_raw(raw, shared_tmp / "allowed")
     except SolveFailed:
         pass
+    import json
+
+    warnings = json.loads((shared_tmp / "allowed" / "summary.json").read_text())["warnings"]
+    assert warnings[0].startswith("the support check was skipped (solver.allow_rigid_modes = true)"), warnings
     raw = box(cells=1)
     raw["material"][0]["density"] = 1000.0
     raw["dynamics"] = {"scheme": "newmark", "dt": 0.01, "end_time": 0.01}
