@@ -587,8 +587,9 @@ def _check_output_folder(directory: Path, comm: MPI.Comm) -> None:
     when the folder cannot be made or written (a probe file is written and removed). Collective."""
     failure: tuple[str, str] | None = None
     if comm.rank == 0:
-        if directory.exists() and not directory.is_dir():
-            failure = ("config", f"output.dir (--out): {directory} is a file, not a folder: give a folder's path")
+        taken = next((p for p in (directory, *directory.parents) if p.exists() and not p.is_dir()), None)
+        if taken is not None:  # the folder, or a folder above it, is a file
+            failure = ("config", f"output.dir (--out): {taken} is a file, not a folder: give a folder's path")
         else:
             probe = directory / f".write_check_{os.getpid()}"
             try:
