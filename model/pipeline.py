@@ -792,7 +792,7 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             _guarded(comm, directory, remove_checkpoint, directory, replaced, comm)
         if comm.rank == 0:
             n = len(summary["steps"])
-            status = "converged" if r.converged else f"FAILED ({r.reason_name}), cutting back"
+            status = "converged" if r.converged else f"FAILED ({r.reason_name})"  # what follows: loadstepping
             what = "t" if dynamic else "load"
             log.info("step %3d  %s %.4f  newton %2d  |R| %.3e  %s", n, what, t, r.iterations, r.residual_norm,
                      status)
