@@ -74,3 +74,9 @@ def test_a_pressure_on_a_face_held_along_its_normal_is_refused_a_roller_is_not()
                               "would be silently dropped"), message
     build_with({"on": "xmin", "type": "displacement", "components": [1], "value": [0.0]},
                {"on": "xmin", "type": "pressure", "value": 1.0}, {**CLAMP, "on": "ymin"})
+
+
+def test_a_prescribed_value_that_is_not_finite_is_refused() -> None:
+    message = refused(CLAMP, {"on": "xmax", "type": "displacement", "components": [0], "expression": ["log(-t)"]})
+    assert message.startswith("boundary[1]: u_x on 'xmax' is nan at [1, "), message
+    assert message.endswith("at load factor 1: a prescribed value must be a finite number at every node")

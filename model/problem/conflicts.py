@@ -72,7 +72,8 @@ def _values(problem: ElasticityProblem, entry: DirichletBoundary, i: int, t: flo
     if f is None:
         return t * entry.reference[i]
     g = fem.Function(entry.values[i].function_space)
-    g.interpolate(lambda x: f(x, t))
+    with np.errstate(all="ignore"):  # a value outside the expression's domain is reported (_finite), not warned
+        g.interpolate(lambda x: f(x, t))
     return g.x.array.copy()
 
 
@@ -184,9 +185,34 @@ def _dropped_loads(problem: ElasticityProblem, conditions: Sequence[Condition], 
                 "components the load does not act on")
 
 
+def _finite(problem: ElasticityProblem, conditions: Sequence[Condition]) -> None:
+    """ConfigError naming the condition and a node where its prescribed value is not a finite number (an expression
+    such as log(x[0] - 1) outside its domain), at the load factors compared."""
+    comm = problem.domain.mesh.comm
+    for condition in conditions:
+        entry = condition.entry
+        for i, c in enumerate(entry.components):
+            if i >= len(entry.collapsed):
+                continue
+            where = None
+            for t in COMPARED_AT:
+                values = _values(problem, entry, i, t)[entry.collapsed[i]]
+                bad = np.flatnonzero(~np.isfinite(values))
+                if len(bad) and where is None:
+                    x = entry.values[i].function_space.tabulate_dof_coordinates()[entry.collapsed[i][bad[0]]]
+                    where = (t, [float(v) for v in x], float(values[bad[0]]))
+            found = [w for w in comm.allgather(where) if w is not None]
+            if found:
+                t, x, value = found[0]
+                point = "[" + ", ".join(f"{v:.4g}" for v in x) + "]"
+                raise ConfigError(f"{condition.key}: u_{AXES[c]} on {entry.name!r} is {value} at {point} at load "
+                                  f"factor {t:g}: a prescribed value must be a finite number at every node")
+
+
 def check_conditions(problem: ElasticityProblem, conditions: Sequence[Condition], loads: Sequence[Load]) -> None:
     """ConfigError (one line naming both keys) on two Dirichlet conditions that give one dof different values,
     or a load whose prescribed directions a Dirichlet condition on the same facets would drop (module
-    docstring). Collective."""
+    docstring); (one line naming the key) on a prescribed value that is not finite. Collective."""
+    _finite(problem, conditions)
     _dirichlet_pairs(problem, conditions)
     _dropped_loads(problem, conditions, loads)
