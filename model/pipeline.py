@@ -583,8 +583,9 @@ def _guarded(comm: MPI.Comm, where: Path, action: Callable[..., Any], *args: Any
 
 
 def _check_output_folder(directory: Path, comm: MPI.Comm) -> None:
-    """Before anything is deleted or solved: ConfigError when the output path is an existing file, OutputFailed
-    when the folder cannot be made or written (a probe file is written and removed). Collective."""
+    """Before anything is deleted or solved: ConfigError when the output path (or a folder above it) is an existing
+    file, OutputFailed when the folder cannot be made or written (a probe file is written and removed, and the
+    folders made for it). Collective."""
     failure: tuple[str, str] | None = None
     if comm.rank == 0:
         taken = next((p for p in (directory, *directory.parents) if p.exists() and not p.is_dir()), None)
@@ -592,10 +593,13 @@ def _check_output_folder(directory: Path, comm: MPI.Comm) -> None:
             failure = ("config", f"output.dir (--out): {taken} is a file, not a folder: give a folder's path")
         else:
             probe = directory / f".write_check_{os.getpid()}"
+            made = [p for p in (directory, *directory.parents) if not p.exists()]  # what the probe creates
             try:
                 directory.mkdir(parents=True, exist_ok=True)
                 probe.write_bytes(b"")
                 probe.unlink()
+                for folder in made:  # left as found: the run makes its folder when it writes (a later error: none)
+                    folder.rmdir()
             except OSError as err:
                 failure = ("os", os_error_message(err, "cannot write the results there"))
     failure = comm.bcast(failure, root=0)
@@ -643,8 +647,6 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
     _check_output_folder(directory, comm)  # a file, or a folder the system will not let us write: one line
     if earlier is None:
         _guarded(comm, directory, remove_earlier_run, directory, comm)  # before any solve, before anything is written
-    reserve = directory / RESERVE  # space kept for summary.json's last word should the disk fill up
-    _guarded(comm, directory, on_rank0, comm, reserve.write_bytes, bytes(RESERVE_BYTES))
     from model.solvers.scale import scale_check
 
     _check_matrix(problem, config, setup.contacts)  # [solver] matrix = "nest" where it cannot serve: before any solve
@@ -669,6 +671,8 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
                       length_unit=config.units.unit("length"), resume=checkpoint["step"] if checkpoint else 0,
                       files=[f for f in earlier.get("files", []) if not f.startswith("checkpoint_")]
                       if earlier else None, render=setup.render)
+    reserve = directory / RESERVE  # space kept for summary.json's last word should the disk fill up
+    _guarded(comm, directory, on_rank0, comm, reserve.write_bytes, bytes(RESERVE_BYTES))
     msh = setup.domain.mesh
     imap = problem.space.dofmap.index_map
     volumes = Volumes(problem)

@@ -111,7 +111,8 @@ def test_hencky_disc_from_the_config(shared_tmp: Path) -> None:
 
 
 @pytest.mark.parametrize(("overrides", "message"), [
-    ({"membrane.thicknes": 0.1}, r"^membrane\.thicknes: unknown key \(allowed: .*thickness"),
+    ({"membrane.thicknes": 0.1},
+     r"^membrane\.thicknes: unknown key, did you mean 'thickness'\? \(allowed: .*thickness"),
     ({"membrane.law": "mooney"}, r"^membrane\.law: 'mooney' is not one of stvk, neo_hookean$"),
     ({"membrane.thickness": -0.01}, r"^membrane\.thickness: -0\.01 is out of range, must be > 0$"),
     ({"membrane.mu": 2.0}, r"^membrane\.mu: only applies to law = 'neo_hookean', not 'stvk'$"),

@@ -104,7 +104,8 @@ DELETE = object()
 
 @pytest.mark.parametrize(("where", "value", "message"), [
     ("muscle.end", 1.0, r"^muscle\.end: 1\.0 is out of range, must be in \(0\.0, 1\.0\)$"),
-    ("muscle.fixed", ["orign"], r"^muscle\.fixed\[0\]: 'orign' is not one of patch, base, origin, insertion$"),
+    ("muscle.fixed", ["orign"],
+     r"^muscle\.fixed\[0\]: 'orign' is not one of patch, base, origin, insertion \(did you mean 'origin'\?\)$"),
     ("muscle.sigma_max", -1.0, r"^muscle\.sigma_max: -1\.0 is out of range, must be > 0$"),
     ("muscle.young", DELETE, r"^muscle\.young: missing"),
     ("muscle.tet_siz", 0.1, r"^muscle\.tet_siz: unknown key"),

@@ -95,8 +95,9 @@ def file_digests(document: dict[str, Any] | None) -> dict[str, str]:
 
 
 def _show(value: Any) -> str:
+    """A value for the message: a string whole (a file's path is useless cut), anything else cut at 80 characters."""
     text = repr(value) if isinstance(value, float) else json.dumps(value)
-    return text if len(text) <= 80 else text[:77] + "..."
+    return text if len(text) <= 80 or isinstance(value, str) and len(text) <= 1000 else text[:77] + "..."
 
 
 def first_difference(here: Any, there: Any, digests_here: dict[str, str],
