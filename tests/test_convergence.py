@@ -123,9 +123,10 @@ def test_bad_input_is_refused() -> None:
 
 
 #: (degree, cells per edge, tolerance on the three-grid order of the L2 and of the H1 error); measured on these
-#: meshes: P1 1.936 and 0.994, P2 2.976 and 1.941. The P1 L2 order approaches 2 slowly from below (8/12/16:
-#: 1.888, 16/24/32: 1.963), so P1 needs meshes up to 24 cells per edge to be within 0.1
-MANUFACTURED = [(1, (12, 16, 24), (0.1, 0.1)), (2, (4, 6, 8), (0.1, 0.1))]
+#: meshes: P1 1.888 and 0.984 (against the exact value 0: 1.956 and 0.997), P2 2.976 and 1.941. The P1 L2 order
+#: approaches 2 slowly from below (12/16/24: 1.936, 16/24/32: 1.963); the coarser P1 meshes with a tolerance of
+#: 0.15 on its three-grid order cost 16 s instead of several minutes (CI time), the other orders within 0.1
+MANUFACTURED = [(1, (8, 12, 16), (0.15, 0.1)), (2, (4, 6, 8), (0.1, 0.1))]
 
 
 @pytest.mark.parametrize("degree,sizes,tolerance", MANUFACTURED)
