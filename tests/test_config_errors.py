@@ -392,7 +392,7 @@ def test_override_nested_too_deeply() -> None:
 @pytest.mark.parametrize(("text", "fragment"), [
     (" + ".join(["x[0]"] * 5000), "34997 characters, at most 10000"),
     (" + ".join(["x[0]"] * 500), "nested 503 levels deep, at most 200"),
-    ("-" * 5000 + "x[0]", "nested too deeply to read"),
+    ("-" * 5000 + "x[0]", "nested"),  # Python 3.11's parser stops ("too deeply to read"), 3.13's counts the levels
     ("sin(" * 1000 + "x[0]" + ")" * 1000, "too many nested parentheses"),
 ])
 def test_expression_too_deep_or_long(text: str, fragment: str) -> None:
