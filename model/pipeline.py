@@ -67,7 +67,7 @@ from model.fields.activation import ActivationField
 from model.fields.fibres import FibreField, solve_laplace
 from model.fields.targets import TargetField
 from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_checkpoint
-from model.output.writer import SUMMARY, ResultWriter, discard, on_rank0, remove_earlier_run, write_json_atomic
+from model.output.writer import SUMMARY, ResultWriter, discard, named, on_rank0, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.conflicts import Condition, Load, check_conditions
 from model.problem.measurements import Volumes, reactions
@@ -574,7 +574,7 @@ def _guarded(comm: MPI.Comm, where: Path, action: Callable[..., Any], *args: Any
     try:
         result = action(*args, **kwargs)
     except OSError as err:
-        failure = os_error_message(err if err.filename is not None else OSError(err.errno, err.strerror, str(where)))
+        failure = os_error_message(named(err, where))
     failures = [f for f in comm.allgather(failure) if f]
     if failures:
         raise OutputFailed(f"{failures[0]}: free space or pick a writable --out; the steps written before are "

@@ -57,6 +57,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from model.studies.runs import toml_text, toml_value  # the TOML writer of sweeps (no dolfinx)
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 #: examples that run in seconds with one load step: the only ones given mutations that may run
@@ -114,42 +116,6 @@ class Outcome:
 
 
 # --- TOML ------------------------------------------------------------------------------------------------------------
-
-def toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{json.dumps(str(k))} = {toml_value(v)}" for k, v in value.items()) + " }"
-    raise ValueError(f"cannot write {value!r} as TOML")
-
-
-def toml_text(raw: dict[str, Any]) -> str:
-    """A document as TOML: top-level values, [tables], [[arrays of tables]], nested tables inline."""
-    def is_tables(v: Any) -> bool:
-        return isinstance(v, list) and bool(v) and all(isinstance(t, dict) for t in v)
-
-    lines = [f"{json.dumps(k)} = {toml_value(v)}" for k, v in raw.items() if not isinstance(v, dict)
-             and not is_tables(v)]
-    for k, body in raw.items():
-        if isinstance(body, dict):
-            lines += [f"[{json.dumps(k)}]", *(f"{json.dumps(n)} = {toml_value(v)}" for n, v in body.items())]
-        elif is_tables(body):
-            for table in body:
-                lines += [f"[[{json.dumps(k)}]]", *(f"{json.dumps(n)} = {toml_value(v)}" for n, v in table.items())]
-    return "\n".join(lines) + "\n"
-
 
 def absolute(raw: Any, base: Path) -> Any:
     """The document with every string that names a file relative to ``base`` made absolute (a written copy of

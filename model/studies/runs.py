@@ -53,7 +53,8 @@ def config_hash(raw: dict[str, Any]) -> str:
     return hashlib.sha256(canonical_json(raw).encode("ascii")).hexdigest()[:16]
 
 
-def _toml_value(value: Any, where: str) -> str:
+def toml_value(value: Any, where: str = "value") -> str:
+    """One TOML value (inline tables and arrays; nan and +-inf as TOML writes them); ValueError naming ``where``."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
@@ -67,25 +68,25 @@ def _toml_value(value: Any, where: str) -> str:
     if isinstance(value, str):
         return json.dumps(value)
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v, where) for v in value) + "]"
+        return "[" + ", ".join(toml_value(v, where) for v in value) + "]"
     if isinstance(value, dict):
-        return "{ " + ", ".join(f"{json.dumps(str(k))} = {_toml_value(v, where)}" for k, v in value.items()) + " }"
+        return "{ " + ", ".join(f"{json.dumps(str(k))} = {toml_value(v, where)}" for k, v in value.items()) + " }"
     raise ValueError(f"{where}: cannot write {value!r} as TOML")
 
 
 def toml_text(raw: dict[str, Any]) -> str:
     """A parsed configuration document as TOML: top-level values, then one [table] per section and one
     [[table]] per entry of an array of tables, nested tables inline. tomllib.loads(toml_text(raw)) == raw."""
-    lines = [f"{json.dumps(k)} = {_toml_value(v, k)}" for k, v in raw.items()
+    lines = [f"{json.dumps(k)} = {toml_value(v, k)}" for k, v in raw.items()
              if not isinstance(v, dict) and not (isinstance(v, list) and v and all(isinstance(t, dict) for t in v))]
     for key, body in raw.items():
         if isinstance(body, dict):
             lines.append(f"[{json.dumps(key)}]")
-            lines += [f"{json.dumps(k)} = {_toml_value(v, f'{key}.{k}')}" for k, v in body.items()]
+            lines += [f"{json.dumps(k)} = {toml_value(v, f'{key}.{k}')}" for k, v in body.items()]
         elif isinstance(body, list) and body and all(isinstance(t, dict) for t in body):
             for i, table in enumerate(body):
                 lines.append(f"[[{json.dumps(key)}]]")
-                lines += [f"{json.dumps(k)} = {_toml_value(v, f'{key}.{i}.{k}')}" for k, v in table.items()]
+                lines += [f"{json.dumps(k)} = {toml_value(v, f'{key}.{i}.{k}')}" for k, v in table.items()]
     return "\n".join(lines) + "\n"
 
 
