@@ -17,7 +17,15 @@ MAX_COUNT = 10_000
 #: unknowns, more than the 24 GB of the machines this runs on hold (1e6 unknowns took 7.3 GB on 2 ranks)
 MAX_CELLS = 50_000_000
 
-__all__ = ["MAX_CELLS", "MAX_COUNT", "ParameterError", "positive_float", "positive_floats", "positive_int", "positive_ints"]
+__all__ = [
+    "MAX_CELLS",
+    "MAX_COUNT",
+    "ParameterError",
+    "positive_float",
+    "positive_floats",
+    "positive_int",
+    "positive_ints",
+]
 
 
 class ParameterError(ValueError, TypeError):
