@@ -85,7 +85,7 @@ def fibre_samples(stretches: list[float], n_random: int, seed: int) -> tuple[np.
         stretch = np.diag([lbar, lbar**-0.5, lbar**-0.5])
         F.append(Q @ stretch @ Q.T * rng.uniform(0.9, 1.1))  # a volume change too: lbar is isochoric
         a0.append(Q[:, 0])
-    G, _ = deformation_samples(n_random, seed)
+    G, _ = deformation_samples(n_random, seed, inverted=False)
     directions = rng.standard_normal((n_random, 3))
     F_all = np.concatenate([np.array(F), G])
     a0_all = np.concatenate([np.array(a0), directions / np.linalg.norm(directions, axis=1)[:, None]])

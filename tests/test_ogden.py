@@ -74,7 +74,7 @@ def _samples() -> tuple[np.ndarray, list[str]]:
          Q1, Q1 @ np.diag([1.0, 1.0, 1.0 + 1e-9]) @ Q2]
     labels = ["identity", "uniaxial", "uniaxial_symmetric", "isotropic", "isotropic_compression", "distinct",
               "axis_aligned_uniaxial", "rotation", "nearly_identity"]
-    G, glabels = deformation_samples(7, seed=3)
+    G, glabels = deformation_samples(7, seed=3, inverted=False)
     return np.concatenate([np.array(F), G]), labels + glabels
 
 

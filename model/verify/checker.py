@@ -34,7 +34,7 @@ import numpy as np
 import forms
 from forms.metadata import FIELD_SHAPES
 from forms.projection import project_tangent
-from model.verify import files, layouts
+from model.verify import diagnosis, files, layouts
 from model.verify.evaluator import SHAPES, ReferenceEvaluator
 from model.verify.report import CheckRow, Report
 
@@ -52,9 +52,13 @@ MEASURE = {key: measure for measure, key in files.STRESS_KEYS.items()}
 
 
 def compare(user: Arrays, ref: Arrays, rtol: float, *, exclude: dict[str, list[tuple[str, np.ndarray]]] | None = None,
-            labels: list[str] | None = None, worst: int = 3) -> list[CheckRow]:
+            labels: list[str] | None = None, worst: int = 3, atol: float = 0.0,
+            modulus: float | None = None) -> list[CheckRow]:
     """Per-sample Frobenius errors of every quantity the user gave (module docstring).
 
+    With ``modulus`` M (check's: the law's largest |A_ijkl(I)|): rel_n = |u_n - r_n| / max(|r_n|, M), and
+    sample n agrees when |u_n - r_n| <= rtol max(|r_n|, M) + atol; the worst samples are those with the
+    largest |u_n - r_n| / (rtol max(|r_n|, M) + atol). Without it, the floor is 1e-6 max_m |r_m| and atol 0.
     ``exclude``: {quantity: [(reason, (N,) bool mask), ...]}, samples left out of that quantity (a
     sample is counted under its first reason). Reference samples that are not finite are always left out.
     """
@@ -79,13 +83,16 @@ def compare(user: Arrays, ref: Arrays, rtol: float, *, exclude: dict[str, list[t
         index = np.flatnonzero(keep)
         err = np.linalg.norm(u[index] - r[index], axis=1)
         norm = np.linalg.norm(r[index], axis=1)
-        floor = 1e-6 * max(float(norm.max(initial=0.0)), 1e-300)
-        rel = err / np.maximum(norm, floor)
+        floor = modulus if modulus is not None else 1e-6 * max(float(norm.max(initial=0.0)), 1e-300)
+        scale = np.maximum(norm, floor)
+        rel = err / scale
         rel[~np.isfinite(rel)] = np.inf
         err[~np.isfinite(err)] = np.inf
-        ranked = np.argsort(-rel, kind="stable")
+        score = err / (rtol * scale + (atol if modulus is not None else 0.0))
+        score[~np.isfinite(score)] = np.inf
+        ranked = np.argsort(-score, kind="stable")
         order = index[ranked]
-        failing = index[ranked[rel[ranked] > rtol]]
+        failing = index[ranked[score[ranked] > 1.0]]
         per_kind: list[tuple[str, float]] = []
         if labels is not None:
             kinds: dict[str, float] = {}
@@ -93,7 +100,7 @@ def compare(user: Arrays, ref: Arrays, rtol: float, *, exclude: dict[str, list[t
                 kinds[labels[m]] = max(kinds.get(labels[m], 0.0), float(value))
             per_kind = list(kinds.items())
         rows.append(CheckRow(q, float(err.max(initial=0.0)), float(rel.max(initial=0.0)),
-                             int(order[0]) if len(order) else -1, bool(np.all(rel <= rtol)),
+                             int(order[0]) if len(order) else -1, bool(np.all(score <= 1.0)),
                              tuple(int(m) for m in failing[:worst]), len(index), tuple(excluded), tuple(per_kind)))
     return rows
 
@@ -141,54 +148,30 @@ def _fields(material: str, fields: dict[str, Any] | None, n: int) -> Arrays:
     return out
 
 
-def _factor_hint(q: str, u: np.ndarray, r: np.ndarray, rtol: float) -> str | None:
-    """"yours = c x reference" when a constant c != 1 fits every compared sample within 10 rtol; "yours is
-    zero" when ||u|| <= rtol ||r|| (c = 0 is no modulus off by a factor)."""
-    u, r = u.reshape(-1), r.reshape(-1)
-    rr = float(r @ r)
-    if rr == 0 or not np.all(np.isfinite(u)):
-        return None
-    c = float(u @ r) / rr
-    if np.linalg.norm(u) <= rtol * np.sqrt(rr):
-        return f"{q}: yours is zero at every compared sample (the reference is not): not written, or not read"
-    if abs(c - 1.0) <= rtol or np.linalg.norm(u - c * r) > 10 * rtol * max(np.linalg.norm(u), 1e-300):
-        return None
-    return (f"{q}: yours = c x reference with c = {c:.6g} at every sample: a constant factor (a modulus off by "
-            "a factor, e.g. mu vs mu/2, or a missing 1/2 or 2)")
-
-
-def _transpose_hint(u: np.ndarray, r: np.ndarray, rtol: float) -> str | None:
-    """"P transposed" when user_n = ref_n^T within rtol at every compared sample (and not ref_n itself)."""
-    rt = np.transpose(r, (0, 2, 1))
-    err = np.linalg.norm((u - rt).reshape(len(u), -1), axis=1)
-    norm = np.linalg.norm(r.reshape(len(r), -1), axis=1)
-    floor = 1e-6 * max(float(norm.max(initial=0.0)), 1e-300)
-    if len(u) and np.all(err / np.maximum(norm, floor) <= max(rtol, 1e-12)):
-        return ("P: yours is the transpose of the reference (yours[i,j] = P[j,i]); P_ij = dpsi/dF_ij with "
-                "F_ij = dx_i/dX_j")
-    return None
-
-
 def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: str | None = None,
           params: dict[str, Any] | None = None, fields: dict[str, Any] | None = None, layout: str = "ijkl",
           rtol: float = 1e-8, labels: list[str] | None = None, projected: bool = False, PK2: Any = None,
-          sigma: Any = None) -> Report:
+          sigma: Any = None, atol: float = 0.0) -> Report:
     """Compare a user's psi (N,), stresses and/or tangent at F (N,3,3) with the reference of ``law`` (a
     built-in name or "FILE.py:FUNCTION") with ``params`` and ``fields`` (per sample, or one value for all).
 
     Stresses: P (N,3,3) the first Piola-Kirchhoff stress, PK2 = S = F^-1 P the second, sigma = P F^T / J
     the Cauchy stress (PK2 and sigma as (N,3,3) or Voigt (N,6), order 11, 22, 33, 12, 13, 23). The
     tangent in ``layout`` (model.verify.layouts; ijkl: A (N,3,3,3,3), A[n,i,j,k,l] = dP_ij/dF_kl).
-    Returns a Report (``.ok``, ``.raise_if_failed()``, ``str``); ValueError for bad input. Given a
-    file path instead of F (and no law), checks that file (``check_file``).
+    Sample n of a quantity agrees when |yours_n - ref_n| <= rtol max(|ref_n|, M) + atol (Frobenius norms;
+    M the law's modulus, the largest |A_ijkl| at F = I: model.verify.diagnosis). Returns a Report (``.ok``,
+    ``.raise_if_failed()``, ``.diagnoses``, ``str``); ValueError for bad input. Given a file path instead
+    of F (and no law), checks that file (``check_file``).
     """
     if isinstance(F, (str, Path)) and law is None:
         return check_file(Path(F), rtol=rtol, params=params, layout=None if layout == "ijkl" else layout,
-                          projected=projected)
+                          projected=projected, atol=atol)
     if law is None:
         raise ValueError("check: law is required (a built-in law's name or FILE.py:FUNCTION)")
     if not (isinstance(rtol, (int, float)) and math.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol = {rtol!r}, must be a finite number > 0")
+    if isinstance(atol, bool) or not (isinstance(atol, (int, float)) and math.isfinite(atol) and atol >= 0):
+        raise ValueError(f"atol = {atol!r}, must be a finite number >= 0")
     if layout not in layouts.TANGENT_LAYOUTS:
         raise ValueError(f"layout {layout!r}: unknown (choose from {', '.join(layouts.TANGENT_LAYOUTS)})")
     if projected and layout in layouts.VOIGT_LAYOUTS:
@@ -239,29 +222,87 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
                         (LOSSY, accuracy["tangent"] > rtol / 10)]
     if "PK2" in user:
         exclude["PK2"].append((LOSSY, lossy_S))
-    rows = compare(user, ref, rtol, exclude=exclude, labels=labels)
-    hints: list[str] = []
+    M = modulus(evaluator, n, sample_fields)
+    rows = compare(user, ref, rtol, exclude=exclude, labels=labels, atol=atol, modulus=M)
     compared = {q: _compared_mask(ref[q], exclude.get(q, [])) for q in user}
+    a0 = sample_fields.get("a0")
+    features = diagnosis.sample_features(F, a0)
+    params_numeric = {k: float(v) for k, v in evaluator.parameters().items()
+                      if isinstance(v, (int, float)) and not isinstance(v, bool)}
+    at_transpose: Arrays | None = None
+    diagnoses: list[diagnosis.Diagnosis] = []
+    details: list[str] = []
+    label = (lambda m: labels[m]) if labels is not None else (lambda m: "")  # noqa: E731
     for row in rows:
         if row.ok:
             continue
         q, keep = row.quantity, compared[row.quantity]
-        found = [h for h in (_factor_hint(q, user[q][keep], ref[q][keep], rtol),
-                             _transpose_hint(user[q][keep], ref[q][keep], rtol) if q == "P" else None) if h]
-        if not found and q != "psi":
-            keep &= np.all(np.isfinite(values["P"].reshape(n, -1)), axis=1)
+        scale = np.maximum(np.linalg.norm(np.reshape(ref[q], (n, -1)), axis=1), M)
+        quantity = diagnosis.Quantity(q, np.asarray(user[q], dtype=np.float64), np.asarray(ref[q], dtype=np.float64),
+                                      keep, rtol * scale + atol, _converter(q, layout, F, user),
+                                      "psi" if q == "psi" else ("A" if q == "A" else "P"))
+        identity = np.flatnonzero(features["identity"] & keep)
+        if len(identity):
+            details.append(diagnosis.detail(quantity, int(identity[0]), label(int(identity[0])), features,
+                                            "the identity"))
+        if row.worst_sample >= 0 and (not len(identity) or row.worst_sample != identity[0]):
+            details.append(diagnosis.detail(quantity, row.worst_sample, label(row.worst_sample), features,
+                                            "the worst sample"))
+        if at_transpose is None:
+            Ft = np.ascontiguousarray(np.transpose(F, (0, 2, 1)))
+            with np.errstate(all="ignore"):
+                tv = evaluator.evaluate(Ft, **sample_fields)
+                at_transpose = _in_layout(layout, Ft, tv["psi"], tv["P"], tv["A"], user)
+                at_transpose["P_ijkl"] = tv["P"]
+
+        def layout_hints(q: str = q, keep: np.ndarray = keep) -> list[str]:
+            if q == "psi":
+                return []
+            keep = keep & np.all(np.isfinite(values["P"].reshape(n, -1)), axis=1)
             keep &= np.all(np.isfinite(A_ref.reshape(n, -1)), axis=1)
             with np.errstate(all="ignore"):
-                found = layouts.hints(layout, F[keep], values["P"][keep], A_ref[keep],
-                                      user_tangent=user[q][keep] if q == "A" else None,
-                                      user_stress=user[q][keep] if q != "A" else None,
-                                      measure=MEASURE.get(q))
-        hints += found
+                return layouts.hints(layout, F[keep], values["P"][keep], A_ref[keep],
+                                     user_tangent=user[q][keep] if q == "A" else None,
+                                     user_stress=user[q][keep] if q != "A" else None, measure=MEASURE.get(q))
+
+        diagnoses += diagnosis.diagnose(quantity, F, params_numeric, features, at_transpose.get(q), layout_hints)
     notes = []
     for row in rows:
         if row.quantity != "psi" and not row.compared:
             notes.append(f"no sample left to compare {row.quantity}")
-    return Report(rows, rtol, law, F, labels, hints, notes, projected and "A" in user, layout)
+    any_compared = np.zeros(n, dtype=bool)
+    for mask in compared.values():
+        any_compared |= mask
+    return Report(rows, rtol, law, F, labels, [d.text for d in diagnoses], notes, projected and "A" in user, layout,
+                  diagnoses=diagnoses, details=details, atol=atol, modulus=M,
+                  coverage=diagnosis.coverage(F, labels, features, any_compared, a0 is not None))
+
+
+def modulus(evaluator: ReferenceEvaluator, n: int, fields: Arrays) -> float | None:
+    """M = max |A_ijkl| at F = I over the samples' fields (lambda + 2 mu for an isotropic law): the absolute
+    floor of every quantity's norm (psi, stresses and tangents share the unit of stress). None when it is
+    0 or not finite (the old floor, 1e-6 of the largest reference norm, then applies)."""
+    with np.errstate(all="ignore"):
+        A = evaluator.evaluate(np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), **fields)["A"]
+    A = np.abs(A[np.isfinite(A)])
+    value = float(A.max()) if A.size else 0.0
+    return value if value > 0 and math.isfinite(value) else None
+
+
+def _converter(q: str, layout: str, F: np.ndarray, user: Arrays) -> Any:
+    """Term values in P form (N,3,3) or ijkl A form -> the user's measure / layout (linear maps)."""
+    if q == "psi":
+        return None
+    if q == "A":
+        zero = np.zeros((len(F), 3, 3))
+        return lambda T: layouts.from_reference(layout, F, zero, T)["tangent"]
+    if q == "P":
+        return lambda T: T
+
+    def stress(T: np.ndarray) -> np.ndarray:
+        out = layouts.stress_from_P(MEASURE[q], F, T)
+        return layouts.to_voigt(out) if user[q].shape[1:] == (6,) else out
+    return stress
 
 
 def _in_layout(layout: str, F: np.ndarray, psi: np.ndarray, P: np.ndarray, A: np.ndarray, user: Arrays) -> Arrays:
@@ -338,7 +379,7 @@ def load_for_check(path: Path, *, material: str | None = None, params: dict[str,
 
 
 def check_file(path: Path, rtol: float = 1e-8, *, material: str | None = None, params: dict[str, Any] | None = None,
-               layout: str | None = None, projected: bool = False) -> Report:
+               layout: str | None = None, projected: bool = False, atol: float = 0.0) -> Report:
     """Recompute the reference for the file's F and fields and compare what it holds.
 
     The law is the file's ``material`` and ``params_json``; ``material`` (--material/--energy) and
@@ -351,7 +392,7 @@ def check_file(path: Path, rtol: float = 1e-8, *, material: str | None = None, p
     try:
         return check(F, psi=user.get("psi"), P=user.get("P"), PK2=user.get("PK2"), sigma=user.get("sigma"),
                      tangent=user.get("A"), law=material, params=params, fields=fields, layout=layout, rtol=rtol,
-                     labels=labels, projected=projected)
+                     labels=labels, projected=projected, atol=atol)
     except ValueError as err:
         if isinstance(err, forms.ParameterError):
             raise

@@ -101,7 +101,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     emit_parser.add_argument("--out", type=Path, required=True,
                              help="the file written: this path when it is a directory (.npy files) or ends in "
                                   ".npz, .csv or .json (the format), else this path with .npz appended (printed)")
-    emit_parser.add_argument("--inverted", action="store_true", help="also emit inverted F (det F < 0)")
+    emit_parser.add_argument("--inverted", action=argparse.BooleanOptionalAction, default=None,
+                             help="a quarter of the samples with det F < 0 (default: drawn unless the law's reference "
+                                  "is not finite there, e.g. ln J; --no-inverted: never)")
     emit_parser.add_argument("--field", action="append", default=[], metavar="NAME=VALUE",
                              help="one field value for every sample: S=identity, a0=1,0,0, alpha=0.5")
     emit_parser.add_argument("--at-breakpoints", action="store_true",
@@ -109,7 +111,11 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     check_parser = vsub.add_parser("check", help="compare a file's psi, P and/or A with the reference",
                                    epilog=epilog(), formatter_class=formatter)
     check_parser.add_argument("file", type=Path)
-    check_parser.add_argument("--rtol", type=float, default=1e-8)
+    check_parser.add_argument("--rtol", type=float, default=1e-8,
+                              help="relative tolerance per sample: |yours - ref| <= rtol max(|ref|, M) + atol, M the "
+                                   "law's largest |A_ijkl| at F = I (default 1e-8; single precision: 1e-4)")
+    check_parser.add_argument("--atol", type=float, default=0.0,
+                              help="absolute tolerance per sample, in the quantity's unit (default 0)")
     _law_options(check_parser, required=False)
     check_parser.add_argument("--projected", action="store_true",
                               help="your tangent is PSD-projected (9x9 eigenvalues clamped at 0): compare it "
@@ -161,7 +167,7 @@ def main(args: argparse.Namespace) -> int:
             _print(summary_text(data))
             return 0
         report = verify.check_file(args.file, rtol=args.rtol, material=material, params=params, layout=args.layout,
-                                   projected=args.projected)
+                                   projected=args.projected, atol=args.atol)
     except (ValueError, OSError, forms.ParameterError) as err:
         _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
         return 2

@@ -23,11 +23,14 @@ from model.verify.evaluator import ReferenceEvaluator
 from model.verify.samples import avoid_undefined, deformation_samples, fibre_breakpoints, field_samples, kind_counts
 
 
-def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Path, inverted: bool = False, *,
+def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Path, inverted: bool | None = None, *,
          fields: dict[str, np.ndarray] | None = None, include_undefined: bool = False,
          layout: str = "ijkl") -> dict[str, np.ndarray]:
     """Write exactly ``out`` (see module docstring) and return its arrays.
 
+    ``inverted``: None (the default) draws a quarter of the samples with det F < 0 and, when the reference
+    is finite at none of them (a ln J law), draws again without (recorded in emit_json["inverted"]);
+    True always keeps them (those not finite are dropped), False never draws them.
     ``fields``: {name: one value} used for every sample instead of the drawn ones (--field).
     ``data["emit_json"]`` records {"requested", "written", "kinds": {label: count}, "moved":
     {reason: count}, "dropped": {reason: count}}.
@@ -39,8 +42,12 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
         if name not in drawn:
             raise ValueError(f"--field {name}: {material} does not take this field")
         drawn[name] = np.array(np.broadcast_to(value, drawn[name].shape))
-    F, labels = deformation_samples(samples, seed, inverted, drawn.get("S"), at_kinks=include_undefined)
     evaluator = ReferenceEvaluator(material, params, samples)
+    inverted_note = "drawn" if inverted is not False else "not drawn (--no-inverted)"
+    if inverted is None and not _finite_when_inverted(evaluator, samples, seed, drawn):
+        inverted = False
+        inverted_note = "not drawn: the reference is not finite at det F < 0 (e.g. ln J)"
+    F, labels = deformation_samples(samples, seed, inverted is not False, drawn.get("S"), at_kinks=include_undefined)
     moved: dict[str, int] = {}
     dropped: dict[str, int] = {}
     keep = np.ones(samples, dtype=bool)
@@ -62,7 +69,7 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
         raise ValueError(f"{material}: every sample was dropped ({', '.join(f'{k}: {v}' for k, v in dropped.items())})")
     labels = [label for label, k in zip(labels, keep) if k]
     summary = {"requested": samples, "written": int(keep.sum()), "kinds": kind_counts(labels), "moved": moved,
-               "dropped": dropped}
+               "dropped": dropped, "inverted": inverted_note}
     converted = layouts.from_reference(layout, F[keep], values["P"][keep], values["A"][keep])
     measure = layouts.NATURAL_STRESS[layout]
     stress = {} if measure == "P" else {files.STRESS_KEYS[measure]: converted["stress"]}
@@ -73,6 +80,18 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
             "emit_json": np.array(json.dumps(summary))}
     data["path"] = np.array(_write_once(Path(out), data))
     return data
+
+
+def _finite_when_inverted(evaluator: ReferenceEvaluator, samples: int, seed: int, fields: dict[str, np.ndarray]) -> bool:
+    """True when the reference is finite at one or more of the inverted samples deformation_samples draws."""
+    F, labels = deformation_samples(samples, seed, True, fields.get("S"))
+    inverted = np.array([label.startswith("inverted_") for label in labels])
+    with np.errstate(all="ignore"):
+        values = evaluator.evaluate(F, **fields)
+    finite = np.ones(samples, dtype=bool)
+    for q in ("psi", "P", "A"):
+        finite &= np.all(np.isfinite(values[q].reshape(samples, -1)), axis=1)
+    return bool(np.any(finite & inverted))
 
 
 def _write_once(out: Path, data: dict[str, np.ndarray]) -> str:
@@ -108,4 +127,6 @@ def summary_text(data: dict[str, np.ndarray]) -> str:
         lines.append(f"moved {count} sample(s) off {what} (labels perturbed_*; --at-breakpoints keeps them)")
     for reason, count in summary["dropped"].items():
         lines.append(f"dropped {count} sample(s): {reason}")
+    if "inverted" in summary:
+        lines.append(f"inverted samples (det F < 0): {summary['inverted']}")
     return "\n".join(lines)

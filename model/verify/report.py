@@ -2,7 +2,8 @@
 samples left out and why, and hints; ``str(report)`` is the table ``verify check`` prints.
 
 Errors are per sample, in the Frobenius norm of the quantity: abs = ||user_n - ref_n||,
-rel = abs / max(||ref_n||, floor), floor = 1e-6 max_m ||ref_m|| over the compared samples.
+rel = abs / max(||ref_n||, M), M the law's modulus (the largest |A_ijkl| at F = I); a sample agrees
+when abs <= rtol max(||ref_n||, M) + atol (model.verify.checker.compare).
 """
 
 from __future__ import annotations
@@ -65,6 +66,15 @@ class Report:
     projected: bool = False
     #: the tangent's layout (model.verify.layouts)
     layout: str = "ijkl"
+    #: the hints with their quantity and kind (model.verify.diagnosis.Diagnosis); ``hints`` holds their texts
+    diagnoses: list = field(default_factory=list)
+    #: yours beside the reference at the identity and at the worst sample of each failing quantity
+    details: list[str] = field(default_factory=list)
+    #: what was compared and what never was (model.verify.diagnosis.coverage)
+    coverage: list[str] = field(default_factory=list)
+    atol: float = 0.0
+    #: M, the floor of the reference norms (the law's largest |A_ijkl(I)|), None: 1e-6 of the largest norm
+    modulus: float | None = None
 
     @property
     def ok(self) -> bool:
@@ -96,8 +106,15 @@ class Report:
 
     def __str__(self) -> str:
         tangent = "A (PSD-projected, both sides)" if self.projected else "A"
-        head = f"verify check: {self.law}, {len(self.F)} samples, rtol {self.rtol:g}, tangent layout {self.layout}"
+        head = f"verify check: {self.law}, {len(self.F)} samples, rtol {self.rtol:g}"
+        if self.atol:
+            head += f", atol {self.atol:g}"
+        head += f", tangent layout {self.layout}"
         lines = [head, format_rows(self.rows)]
+        if self.modulus is not None:
+            lines.append(f"(errors per sample: rel = |yours - ref| / max(|ref|, M), M = {self.modulus:.4g} the law's "
+                         f"largest |A_ijkl| at F = I; a sample agrees when |yours - ref| <= rtol max(|ref|, M)"
+                         + (" + atol)" if self.atol else ")"))
         if self.projected:
             lines.append(f"(A is compared as {tangent})")
         for r in self.rows:
@@ -121,7 +138,9 @@ class Report:
                     value = dict(r.per_kind).get(kind)
                     cells.append(f" {value:10.2e}" if value is not None else f" {'-':>10}")
                 lines.append(f"  {kind:28}" + "".join(cells))
+        lines += self.details
         lines += [f"note: {n}" for n in self.notes]
         lines += [f"hint: {h}" for h in self.hints]
+        lines += self.coverage
         lines.append("result: ok" if self.ok else "result: FAIL")
         return "\n".join(lines)

@@ -1,10 +1,10 @@
 """Samples of F and of the laws' fields for ``verify emit``, away from points where the reference is
 undefined.
 
-Deformation kinds (``deformation_samples``): identity; pure rotations; repeated singular values
-(uniaxial (a, b, b), isotropic (a, a, a)); large stretches (singular values in [0.3, 3]); nearly flat
-elements (smallest singular value 1e-4 to 1e-2); random F near I; with ``inverted`` a quarter get
-det F < 0.
+Deformation kinds (``deformation_samples``): the identity (once: no sample is drawn twice); pure
+rotations; repeated singular values (uniaxial (a, b, b), isotropic (a, a, a)); large stretches
+(singular values in [0.3, 3]); nearly flat elements (smallest singular value 1e-4 to 1e-2); random F
+near I; and, unless ``inverted=False``, a quarter with det F < 0 (F times a reflection).
 
 Fields (``field_samples``) are made for every field the law takes, generically over
 forms.metadata.FIELD_SHAPES: S symmetric positive definite, a0 and s0 unit vectors (s0 orthogonal
@@ -49,11 +49,13 @@ def _from_singular_values(rng: np.random.Generator, sigma: np.ndarray) -> np.nda
     return _rotations(rng, len(sigma)) @ (sigma[:, :, None] * np.eye(3)) @ _rotations(rng, len(sigma))
 
 
-def deformation_samples(n: int, seed: int, inverted: bool = False,
+def deformation_samples(n: int, seed: int, inverted: bool = True,
                         targets: np.ndarray | None = None, at_kinks: bool = False) -> tuple[np.ndarray, list[str]]:
     """n deformation gradients covering the hard cases, and a label for each (module docstring).
 
-    With ``inverted``, a quarter of them get det F < 0 (F times a reflection), chosen among samples
+    The first sample is the identity, the others cycle through the other kinds. With ``inverted``
+    (the default; a law whose reference is not finite at det F < 0, ln J, has those samples left out
+    of a check with a count), a quarter of them get det F < 0 (F times a reflection), chosen among samples
     where the two smallest singular values of the matrix whose rotation the law uses (F D, or F D S
     with the shape targets ``targets``) differ by more than 5%: for det < 0 the rotation variant of
     the polar decomposition has no derivative where they coincide (K = tr(Sigma) I - Sigma is
@@ -64,7 +66,7 @@ def deformation_samples(n: int, seed: int, inverted: bool = False,
     if n < 1:
         raise ValueError("--samples must be >= 1")
     rng = np.random.default_rng(seed)
-    labels = [KINDS[i % len(KINDS)] for i in range(n)]
+    labels = ["identity"] + [KINDS[1 + i % (len(KINDS) - 1)] for i in range(n - 1)]
     F = np.empty((n, 3, 3))
     for i, kind in enumerate(labels):
         if kind == "identity":

@@ -2,7 +2,7 @@
 
 Each formula is a numpy transcription of what the
 seed prints (the notation decisions are in each function's docstring), evaluated at the verify
-samples (``deformation_samples(SAMPLES, SEED)``: identity, rotations, repeated singular values,
+samples (``deformation_samples(SAMPLES, SEED, inverted=False)``: identity, rotations, repeated singular values,
 large stretches, nearly flat elements, random F; ``field_samples`` for S) and compared with
 ``model.verify.compare`` against the reference of the law the formula belongs to, computed
 through the project's UFL forms (``ReferenceEvaluator``), at rtol 1e-8. A disagreement is a
@@ -113,7 +113,7 @@ __all__ = ["ELEMENT_SAMPLES", "KLAR", "LAMBDA_THESIS", "MU_KLAR", "MU_THESIS", "
 
 def seed_rows(include_inverted: bool = True) -> list[SeedRow]:
     """Every row of the table (collective-free: each MPI rank computes the same rows on COMM_SELF)."""
-    F, _ = deformation_samples(SAMPLES, SEED)
+    F, _ = deformation_samples(SAMPLES, SEED, inverted=False)
     S = field_samples("shape_target", SAMPLES, SEED)["S"]
     klar = ReferenceEvaluator("shape_target", {"mu": MU_KLAR}, SAMPLES)
     klar_ref = klar.evaluate(F, S=S)

@@ -395,7 +395,7 @@ def _thesis_rows(F: np.ndarray, ref: Quantities) -> list[SeedRow]:
 
 def _thesis_muscle_rows() -> list[SeedRow]:
     """Eqs. 4.8 (B.19), 4.9, 4.10 and dU/dF against the ``muscle`` law with its fibre term isolated."""
-    F, _ = deformation_samples(SAMPLES, SEED)
+    F, _ = deformation_samples(SAMPLES, SEED, inverted=False)
     a0 = field_samples("muscle", SAMPLES, SEED)["a0"]
     alpha = np.ones(SAMPLES)
     full = ReferenceEvaluator("muscle", MUSCLE_FIBRE, SAMPLES).evaluate(F, a0=a0, alpha=alpha)
@@ -456,7 +456,7 @@ HandLaw = tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.nd
 def _element_rows() -> list[SeedRow]:
     """Thesis eq. 4.5 and its stiffness, with hand-derived P and dP/dF, against a one-cell dolfinx assembly."""
     mu, lam = MU_THESIS, LAMBDA_THESIS
-    F, _ = deformation_samples(ELEMENT_SAMPLES, SEED + 1)
+    F, _ = deformation_samples(ELEMENT_SAMPLES, SEED + 1, inverted=False)
     S = field_samples("shape_target", ELEMENT_SAMPLES, SEED + 1)["S"]
     lame = {"mu": mu, "lmbda": lam}
     cases: list[tuple[str, dict[str, float], str, HandLaw]] = [
@@ -698,7 +698,7 @@ def _membrane_rows() -> list[SeedRow]:
     from model.verify.seeds.thesis_reference import MembraneTriangle, PressureSurface
 
     Y, nu, h, p = MEMBRANE_Y, MEMBRANE_NU, MEMBRANE_THICKNESS, MEMBRANE_PRESSURE
-    F3, _ = deformation_samples(ELEMENT_SAMPLES, SEED + 2)
+    F3, _ = deformation_samples(ELEMENT_SAMPLES, SEED + 2, inverted=False)
     rng = np.random.default_rng(SEED + 2)
     x = np.einsum("nij,aj->nai", F3, TRIANGLE) + 0.05 * rng.standard_normal((ELEMENT_SAMPLES, 3, 3))
     Xbar = membrane_material_coords(TRIANGLE)
