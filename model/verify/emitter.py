@@ -82,7 +82,8 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
     return data
 
 
-def _finite_when_inverted(evaluator: ReferenceEvaluator, samples: int, seed: int, fields: dict[str, np.ndarray]) -> bool:
+def _finite_when_inverted(evaluator: ReferenceEvaluator, samples: int, seed: int,
+                          fields: dict[str, np.ndarray]) -> bool:
     """True when the reference is finite at one or more of the inverted samples deformation_samples draws."""
     F, labels = deformation_samples(samples, seed, True, fields.get("S"))
     inverted = np.array([label.startswith("inverted_") for label in labels])
