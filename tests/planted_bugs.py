@@ -442,8 +442,9 @@ BUGS: list[Planted] = [
     Planted("fibre_term_missing", "fibre", lambda F, f: only(neo_hookean(F), "psi", "P"), "P", "term", "fibre"),
     Planted("fibre_k1_over_k2", "fibre", lambda F, f: only(fibre(F, f["a0"], fibre_factor=2.0), "P", "tangent"),
             "P", "term", "fibre"),
-    Planted("fibre_wrong_direction", "fibre", lambda F, f: fibre(F, np.roll(f["a0"], -1, axis=0)), "P", "region",
-            "fibre"),
+    # another sample's fibre direction: wrong wherever |F a0| differs between the two directions (no region, no
+    # recognisable term: the report gives yours beside the reference and the worst samples, no hint)
+    Planted("fibre_wrong_direction", "fibre", lambda F, f: fibre(F, np.roll(f["a0"], -1, axis=0)), "P"),
     Planted("fibre_tension_only", "fibre", lambda F, f: fibre(F, f["a0"], tension_only=True), "P", "region",
             "compress"),
     Planted("fibre_exp_capped", "fibre", lambda F, f: fibre(F, f["a0"], exp_cap=1.0), "P", "region",

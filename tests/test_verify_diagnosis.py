@@ -64,7 +64,7 @@ def test_nearly_flat_samples_no_longer_hide_the_others() -> None:
     assert row.worst_sample == int(np.flatnonzero(finite)[np.argmax(rel[finite])])  # the truly worst
     text = str(report)
     assert "A[0, 0, 0, 0] at the identity #0 (J 1, stretches 1, 1, 1): yours 6, reference 13" in text, text
-    assert "hint: A: yours - reference = -7 F^-T x F^-T at every compared sample (c = -1 x lmbda)" in text, text
+    assert "hint: A: yours - reference = -7 F^-T x F^-T at every compared sample (c = -lmbda)" in text, text
 
 
 def test_every_report_ends_with_its_coverage() -> None:

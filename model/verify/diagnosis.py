@@ -185,7 +185,8 @@ def _simple_ratio(x: float) -> bool:
 
 
 def name_coefficient(c: float, params: dict[str, float]) -> str | None:
-    """"-1 x lmbda" when c is a simple multiple of a law parameter (the simplest ratio first), else None."""
+    """"-lmbda", "0.1 lmbda", "2 mu" when c is a simple multiple of a law parameter (the simplest ratio first),
+    else None."""
     best: tuple[int, str] | None = None
     for name, value in params.items():
         if not value or not np.isfinite(value):
@@ -193,7 +194,7 @@ def name_coefficient(c: float, params: dict[str, float]) -> str | None:
         ratio = c / value
         if not _simple_ratio(ratio):
             continue
-        text = f"{ratio:.2g} x {name}"
+        text = {1.0: name, -1.0: f"-{name}"}.get(round(ratio, 12), f"{ratio:.2g} {name}")
         rank = len(f"{abs(ratio):.2g}")
         if best is None or rank < best[0]:
             best = (rank, text)
@@ -314,6 +315,7 @@ def term_hint(q: Quantity, F: np.ndarray, params: dict[str, float]) -> Diagnosis
             continue
         named = name_coefficient(c, params)
         coefficient = f" (c = {named})" if named else ""
+        name = f"({name})" if " - " in name or " + " in name else name
         if c < 0:
             meaning = (f"a term {_number(-c)} {name} of the reference is missing from yours (or yours has it with "
                        "a smaller coefficient)")
