@@ -12,7 +12,7 @@ A[n,i,j,k,l] = dP_ij/dF_kl, written from the formulas (independent of the UFL re
                         psi(I) = 0)                                                        forms/isotropic_more.py
     corotated           mu ||F - R||^2 + (lmbda/2)(J - 1)^2, R the polar rotation of the signed SVD (det F < 0:
                         U's last column and the last singular value negated); arap = corotated, lmbda = 0
-    fibre               tests/data/planted_fibre_law.py: neo_hookean + k1/(2 k2)(exp(k2 (I4 - 1)^2) - 1),
+    fibre               examples/fibre_neo_hookean_law.py: neo_hookean + k1/(2 k2)(exp(k2 (I4 - 1)^2) - 1),
                         I4 = a0 . C a0 (a law of the user's own, "FILE.py:psi", field a0)
 
 Ic = ||F||^2, J = det F, cof F = J F^-T (computed from F's entries, no inverse), d(cof F)_ij/dF_kl =
@@ -38,7 +38,7 @@ import numpy as np
 from model.verify.layouts import VOIGT_ORDER, VOIGT_ORDER_STANDARD, from_reference
 
 Arrays = dict[str, np.ndarray]
-FIBRE_LAW = Path(__file__).resolve().parent / "data" / "planted_fibre_law.py"
+FIBRE_LAW = Path(__file__).resolve().parents[1] / "examples" / "fibre_neo_hookean_law.py"
 EYE = np.eye(3)
 #: e_ijk
 LEVI = np.zeros((3, 3, 3))
@@ -436,7 +436,7 @@ BUGS: list[Planted] = [
     # arap (mu = 3): mu/2 ||F - R||^2, the other convention
     Planted("arap_mu_half", "arap", lambda F, f: {k: 0.5 * v for k, v in corotated(F, lmbda=0.0).items()}, "psi",
             "factor", "0.5"),
-    # fibre law of the user's own (tests/data/planted_fibre_law.py)
+    # fibre law of the user's own (examples/fibre_neo_hookean_law.py)
     Planted("fibre_F_column_major", "fibre", lambda F, f: fibre(np.transpose(F, (0, 2, 1)), f["a0"]), "P",
             "column_major", "F^T"),
     Planted("fibre_term_missing", "fibre", lambda F, f: only(neo_hookean(F), "psi", "P"), "P", "term", "fibre"),

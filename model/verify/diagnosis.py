@@ -457,11 +457,12 @@ def detail(q: Quantity, n: int, label: str, features: dict[str, np.ndarray], whe
     entry = _index(flat, u.shape)
     yours, reference = u.reshape(-1)[flat], r.reshape(-1)[flat]
     head = f"{q.name}{entry} at {where} {describe_sample(n, '' if where == 'the identity' else label, features)}"
-    agrees = " (agrees)" if np.linalg.norm(u - r) <= q.tol[n] else ""
+    if np.linalg.norm(u - r) <= q.tol[n]:
+        return f"{q.name} at {where} {describe_sample(n, '' if where == 'the identity' else label, features)}: agrees"
     if u.shape:
-        return (f"{head}{agrees}: yours {yours:.8g}, reference {reference:.8g} (the largest difference; "
+        return (f"{head}: yours {yours:.8g}, reference {reference:.8g} (the largest difference; "
                 f"|yours - reference| {np.linalg.norm(u - r):.4g}, |reference| {np.linalg.norm(r):.4g})")
-    return f"{head}{agrees}: yours {yours:.8g}, reference {reference:.8g}"
+    return f"{head}: yours {yours:.8g}, reference {reference:.8g}"
 
 
 # --- coverage -------------------------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""A fibre-reinforced neo-Hookean energy of a user's own, for tests/planted_bugs.py (forms/user_law.py contract).
+"""A fibre-reinforced neo-Hookean energy of a user's own (the forms/user_law.py contract), used by
+examples/verify_diagnosis.py and tests/planted_bugs.py.
 
     W = (mu/2)(I1 - 3) - mu ln J + (lmbda/2)(ln J)^2 + k1/(2 k2) (exp(k2 (I4 - 1)^2) - 1),
 
