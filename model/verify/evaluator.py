@@ -1,6 +1,7 @@
 """Reference values of psi, P = dpsi/dF and A = dP/dF of a law at many F, through UFL and dolfinx.
 
-Each sample is one cell of a mesh of N disjoint tetrahedra on MPI.COMM_SELF; F and the law's fields
+Each sample is one cell of a mesh of disjoint tetrahedra on MPI.COMM_SELF (at most CHUNK of them; more
+samples are evaluated chunk by chunk through the same mesh and compiled Expressions); F and the law's fields
 (forms.metadata.FIELD_SHAPES: S (3,3), a0 (3,), s0 (3,), alpha ()) are DG0 functions, and psi,
 P = law.stress(F) and A = ufl.diff(P, F) are dolfinx Expressions evaluated at the cell's one
 quadrature point. Laws with a polar rotation use the simulations' quadrature-point machinery
@@ -26,6 +27,8 @@ from model.fields.polar import PolarField
 #: The quantities of a check, and their value shape per sample.
 QUANTITIES = ("psi", "P", "A")
 SHAPES: dict[str, tuple[int, ...]] = {"psi": (), "P": (3, 3), "A": (3, 3, 3, 3)}
+#: samples per chunk of ReferenceEvaluator.evaluate: the most cells of its mesh (read when an evaluator is made)
+CHUNK = 1024
 
 
 def law_fields(material: str) -> tuple[str, ...]:
@@ -47,12 +50,21 @@ def compile_error(material: str, err: BaseException) -> str:
 
 
 class ReferenceEvaluator:
-    """psi, P, A of a law at many F (and per-sample fields), through UFL and dolfinx."""
+    """psi, P, A of a law at many F (and per-sample fields), through UFL and dolfinx, in chunks.
+
+    The mesh holds C = min(num_samples, CHUNK) disjoint tetrahedra (at least one), built and compiled
+    once; ``evaluate`` takes any number M of samples and runs ceil(M / C) chunks through it, the last
+    one padded with F = I and the chunk's first sample's fields (the padding is evaluated and
+    discarded). Creating a mesh grows faster than linearly in its cells; the chunks keep the time
+    linear in M. ``num_samples`` is only the size hint of the mesh.
+    """
 
     def __init__(self, material: str, params: dict[str, Any], num_samples: int) -> None:
         entry = forms.resolve_law(material)  # ParameterError naming the law when unknown
         self.material = material
-        self.num_samples = n = num_samples
+        self.num_samples = num_samples
+        #: samples per chunk: the cells of the mesh
+        self.chunk = n = max(1, min(int(num_samples), int(CHUNK)))
         reference_tet = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
         x = np.tile(reference_tet, (n, 1))
         cells = np.arange(4 * n, dtype=np.int64).reshape(n, 4)
@@ -89,29 +101,73 @@ class ReferenceEvaluator:
                 raise
             raise forms.ParameterError(compile_error(material, err)) from None
         self.cells = np.arange(n, dtype=np.int32)
+        self._place_samples(self.order)
+
+    def _place_samples(self, order: np.ndarray) -> None:
+        """Sample order[c] (a row of a chunk) in local cell c: the sample held by each DG0 dof, and the cell
+        (row of an Expression's values) of each sample. Every DG0 space of the mesh numbers its dofs alike
+        (one per cell, in blocks of the value size)."""
+        self.order = np.asarray(order, dtype=np.int64)
+        dofs = compat.cell_dofs(self.F.function_space.dofmap)[:, 0]
+        self._dof_sample = np.empty(self.chunk, dtype=np.int64)
+        self._dof_sample[dofs] = self.order
+        self._sample_cell = np.empty(self.chunk, dtype=np.int64)
+        self._sample_cell[self.order] = np.arange(self.chunk)
 
     def _set(self, function: fem.Function, values: np.ndarray) -> None:
+        """function <- values (chunk, *shape) by sample: the dof of the cell of sample s gets values[s]."""
         size = function.function_space.dofmap.index_map_bs
-        values = np.asarray(values, dtype=np.float64).reshape(self.num_samples, size)
-        function.x.array[:] = values[self.order].reshape(-1)
+        function.x.array[:] = values.reshape(self.chunk, size)[self._dof_sample].reshape(-1)
+
+    def _as_samples(self, name: str, values: Any, m: int, shape: tuple[int, ...]) -> np.ndarray:
+        """``values`` as (m, *shape) float64 (one value of ``shape`` is used for every sample), or ValueError."""
+        array = np.asarray(values, dtype=np.float64)
+        size = int(np.prod(shape, dtype=int))
+        if array.shape == shape and m != 1:
+            array = np.broadcast_to(array, (m, *shape))
+        if array.size != m * size:
+            raise ValueError(f"{self.material}: {name} of shape {array.shape} for {m} samples of F; expected "
+                             f"{(m, *shape)}")
+        return array.reshape(m, *shape)
 
     def evaluate(self, F: np.ndarray, **fields: np.ndarray) -> dict[str, np.ndarray]:
-        """{'psi': (N,), 'P': (N,3,3), 'A': (N,3,3,3,3)} at the given F (N,3,3) and fields."""
-        self._set(self.F, F)
-        for name, function in self.fields.items():
+        """{'psi': (M,), 'P': (M,3,3), 'A': (M,3,3,3,3)} at the given F (M,3,3) and fields (M, *shape), for any M.
+
+        Chunk by chunk of ``self.chunk`` samples: F and the fields are written into the DG0 functions,
+        the polar rotation (PolarField.update) and the eigen state (EigenField.update) are refreshed
+        from them, and psi, P = law.stress(F), A = dP/dF are evaluated at every cell.
+        """
+        F = np.asarray(F, dtype=np.float64)
+        if F.size % 9:
+            raise ValueError(f"{self.material}: F of shape {F.shape}; expected (M, 3, 3)")
+        F = F.reshape(-1, 3, 3)
+        m = len(F)
+        given: dict[str, np.ndarray] = {}
+        for name in self.fields:
             if name not in fields:
                 raise ValueError(f"{self.material} needs the field {name}")
-            self._set(function, fields[name])
-        if self.polar is not None:
-            self.polar.update()
-        if self.eigen is not None:
-            self.eigen.update()
-        inverse = np.empty_like(self.order)
-        inverse[self.order] = np.arange(self.num_samples)
-        out = {}
-        for name in QUANTITIES:
-            values = compat.evaluate(self.expressions[name], self.mesh, self.cells)
-            out[name] = values.reshape(self.num_samples, *SHAPES[name])[inverse]
+            given[name] = self._as_samples(name, fields[name], m, FIELD_SHAPES[name])
+        out = {name: np.empty((m, *SHAPES[name])) for name in QUANTITIES}
+        c = self.chunk
+        for start in range(0, m, c):
+            k = min(c, m - start)
+            F_chunk = F[start:start + k]
+            chunk_fields = {name: value[start:start + k] for name, value in given.items()}
+            if k < c:  # padding: F = I with the chunk's first sample's fields
+                F_chunk = np.concatenate([F_chunk, np.broadcast_to(np.eye(3), (c - k, 3, 3))])
+                chunk_fields = {name: np.concatenate([value, np.broadcast_to(value[0], (c - k, *value.shape[1:]))])
+                                for name, value in chunk_fields.items()}
+            self._set(self.F, F_chunk)
+            for name, function in self.fields.items():
+                self._set(function, chunk_fields[name])
+            if self.polar is not None:
+                self.polar.update()
+            if self.eigen is not None:
+                self.eigen.update()
+            rows = self._sample_cell[:k]
+            for name in QUANTITIES:
+                values = compat.evaluate(self.expressions[name], self.mesh, self.cells)
+                out[name][start:start + k] = values.reshape(c, *SHAPES[name])[rows]
         return out
 
     def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
