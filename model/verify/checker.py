@@ -230,7 +230,10 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
     params_numeric = {k: float(v) for k, v in evaluator.parameters().items()
                       if isinstance(v, (int, float)) and not isinstance(v, bool)}
     at_transpose: Arrays | None = None
+    term_values: dict[str, np.ndarray] = {}
+    term_names: list[str] = []
     diagnoses: list[diagnosis.Diagnosis] = []
+    quantities: dict[str, diagnosis.Quantity] = {}
     details: list[str] = []
     label = (lambda m: labels[m]) if labels is not None else (lambda m: "")  # noqa: E731
     for row in rows:
@@ -265,7 +268,27 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
                                      user_tangent=user[q][keep] if q == "A" else None,
                                      user_stress=user[q][keep] if q != "A" else None, measure=MEASURE.get(q))
 
-        diagnoses += diagnosis.diagnose(quantity, F, params_numeric, features, at_transpose.get(q), layout_hints)
+        def law_terms(quantity: diagnosis.Quantity = quantity) -> list[tuple[str, np.ndarray]]:
+            if not term_names:
+                term_names.extend(evaluator.energy_terms() or ["none"])
+                if term_names != ["none"]:
+                    with np.errstate(all="ignore"):
+                        term_values.update(evaluator.evaluate_terms(F, **sample_fields))
+            if not term_values or projected:
+                return []
+            values = term_values[quantity.family]
+            out = []
+            for k, name in enumerate(term_names):
+                T = values[:, k]
+                with np.errstate(all="ignore"):
+                    out.append((name, quantity.convert(T) if quantity.convert is not None else T))
+            return out
+
+        quantities[q] = quantity
+        diagnoses += diagnosis.diagnose(quantity, F, params_numeric, features, at_transpose.get(q), layout_hints,
+                                        law_terms)
+    diagnoses = _parameter_diagnosis(diagnoses, quantities, law, dict(params or {}), F, sample_fields, layout, user,
+                                     projected)
     notes = []
     for row in rows:
         if row.quantity != "psi" and not row.compared:
@@ -276,6 +299,34 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
     return Report(rows, rtol, law, F, labels, [d.text for d in diagnoses], notes, projected and "A" in user, layout,
                   diagnoses=diagnoses, details=details, atol=atol, modulus=M,
                   coverage=diagnosis.coverage(F, labels, features, any_compared, a0 is not None))
+
+
+def _parameter_diagnosis(diagnoses: list[diagnosis.Diagnosis], quantities: dict[str, diagnosis.Quantity], law: str,
+                         params: dict[str, Any], F: np.ndarray, fields: Arrays, layout: str, user: Arrays,
+                         projected: bool) -> list[diagnosis.Diagnosis]:
+    """The parameter hint (diagnosis.parameter_hint) for the failing quantities no cause explains (no hint, or
+    only a region), through a second evaluator holding the law's parameters as runtime values; it replaces
+    their region hints. Laws whose parameters cannot be held so are left as they are."""
+    explained = {d.quantity for d in diagnoses if d.kind != "region"}
+    open_ = [quantities[q] for q in quantities if q not in explained]
+    if not open_ or projected:
+        return diagnoses
+    try:
+        runtime = ReferenceEvaluator(law, params, len(F), runtime_parameters=True)
+    except Exception:  # noqa: BLE001 -- no parameter hint for a law whose numbers UFL cannot hold
+        return diagnoses
+
+    def reference_at(values: dict[str, float]) -> Arrays:
+        runtime.set_parameters(values)
+        v = runtime.evaluate(F, **fields)
+        return _in_layout(layout, F, v["psi"], v["P"], v["A"], user)
+
+    own = {name: value for name, (_, value) in runtime.constants.items()}
+    hint = diagnosis.parameter_hint(open_, own, reference_at, law)
+    if hint is None:
+        return diagnoses
+    names = {q.name for q in open_}
+    return [d for d in diagnoses if d.quantity not in names] + [hint]
 
 
 def modulus(evaluator: ReferenceEvaluator, n: int, fields: Arrays) -> float | None:

@@ -20,8 +20,10 @@ For a failing quantity (``diagnose``):
   ``transpose`` (P: yours_n = ref_n^T), ``layout`` (another tangent layout, measure, Voigt order or index
   permutation matches: model.verify.layouts.hints), ``column_major`` (yours are the reference at F^T: F
   read column-major), ``term`` (yours - ref = c T for one recognisable term T of the
-  hyperelastic laws' formulas, ``TERMS``; c named as a multiple of a law parameter when it is one),
-  and, when none of those explains it, ``region`` (every failing sample lies in one region, the
+  hyperelastic laws' formulas (``terms``), c named as a multiple of a law parameter when it is one,
+  or for one addend psi_k of the law's own energy in UFL, with its P_k and A_k), ``parameter`` (yours
+  match the law with one parameter p changed to s p: ``parameter_hint``, over every failing quantity
+  without a cause), and, when none of those explains it, ``region`` (every failing sample lies in one region, the
   narrowest of: det F < 0, a nearly flat element, the rest state (identity, rotations), compression
   J < 1, extension J > 1, a large stretch, a compressed or stretched fibre; and every sample outside
   it agrees).
@@ -349,9 +351,26 @@ def region_hint(q: Quantity, features: dict[str, np.ndarray]) -> Diagnosis | Non
                                        f"fail, all {compared - size} others agree; look for {suggestion}")
 
 
+def law_term_hint(q: Quantity, law_terms: list[tuple[str, np.ndarray]]) -> Diagnosis | None:
+    """yours - ref = c psi_k (or its P, A) for one addend psi_k of the law's own energy (UFL), in your layout."""
+    for description, T in law_terms:
+        c = _fit(q, T)
+        if c is None or abs(c) < 1e-9 or not _explains(q, q.ref + c * T):
+            continue
+        if abs(c + 1) <= 1e-6:
+            meaning = f"the reference's {description} is missing from yours"
+        elif abs(c - 1) <= 1e-6:
+            meaning = f"yours has the {description} twice"
+        else:
+            meaning = f"yours has the {description} times {_number(1 + c)}"
+        return Diagnosis(q.name, "term", f"{q.name}: yours - reference = {_number(c)} x ({description}) at every "
+                                         f"compared sample: {meaning}")
+    return None
+
+
 def diagnose(q: Quantity, F: np.ndarray, params: dict[str, float], features: dict[str, np.ndarray],
-             at_transpose: np.ndarray | None = None, layout_hints: Callable[[], list[str]] | None = None
-             ) -> list[Diagnosis]:
+             at_transpose: np.ndarray | None = None, layout_hints: Callable[[], list[str]] | None = None,
+             law_terms: Callable[[], list[tuple[str, np.ndarray]]] | None = None) -> list[Diagnosis]:
     """The hints for a failing quantity (module docstring): the first cause that explains the difference;
     else the region it is confined to; else nothing."""
     for hint in (zero_hint(q), offset_hint(q), factor_hint(q), transpose_hint(q)):
@@ -367,6 +386,8 @@ def diagnose(q: Quantity, F: np.ndarray, params: dict[str, float], features: dic
     if q.family in ("psi", "P", "A"):
         with np.errstate(all="ignore"):
             hint = term_hint(q, F, params)
+            if hint is None and law_terms is not None:
+                hint = law_term_hint(q, law_terms())
         if hint is not None:
             return [hint]
     hint = region_hint(q, features)

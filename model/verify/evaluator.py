@@ -10,6 +10,8 @@ quadrature point. Laws with a polar rotation use the simulations' quadrature-poi
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -18,7 +20,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 import forms
-from forms.law import Law
+from forms.law import Law, with_parameter_values
 from forms.metadata import FIELD_SHAPES
 from model import compat
 from model.fields.eigen import EigenField
@@ -59,7 +61,12 @@ class ReferenceEvaluator:
     linear in M. ``num_samples`` is only the size hint of the mesh.
     """
 
-    def __init__(self, material: str, params: dict[str, Any], num_samples: int) -> None:
+    def __init__(self, material: str, params: dict[str, Any], num_samples: int,
+                 runtime_parameters: bool = False) -> None:
+        """``runtime_parameters``: every finite number parameter of the law is held by a fem.Constant
+        (forms.law.with_parameter_values), so that ``set_parameters`` changes it without compiling again
+        (the diagnosis's parameter fit); ValueError when the law's parameters cannot be held so (numbers
+        computed outside UFL, e.g. an eigen state)."""
         entry = forms.resolve_law(material)  # ParameterError naming the law when unknown
         self.material = material
         self.num_samples = num_samples
@@ -77,7 +84,12 @@ class ReferenceEvaluator:
             space = compat.function_space(self.mesh, "DG", 0, FIELD_SHAPES[name])
             self.fields[name] = fem.Function(space, name=name)
         self.law: Law = entry.make(**self.fields, **params)
+        self.numeric_law = self.law
+        self.constants: dict[str, tuple[fem.Constant, float]] = {}
+        if runtime_parameters:
+            self._hold_parameters()
         Fv = ufl.variable(self.F)
+        self._Fv = Fv
         self.eigen = None
         if getattr(self.law, "needs_eigenbasis", False):  # per-point eigen state (forms.ogden)
             self.eigen = EigenField(self.mesh, self.law.spectral_argument(Fv), 1,  # type: ignore[attr-defined]
@@ -89,6 +101,8 @@ class ReferenceEvaluator:
             self.polar = PolarField(self.mesh, self.law.rotation_argument(Fv), 1)
             R = self.polar.rotation
         points = compat.quadrature_points(self.mesh, 1)
+        self._points = points
+        self._terms: tuple[list[str], dict[str, Any]] | None = None
         try:
             psi = self.law.energy(Fv, R)
             P = self.law.stress(Fv, R)
@@ -147,7 +161,13 @@ class ReferenceEvaluator:
             if name not in fields:
                 raise ValueError(f"{self.material} needs the field {name}")
             given[name] = self._as_samples(name, fields[name], m, FIELD_SHAPES[name])
-        out = {name: np.empty((m, *SHAPES[name])) for name in QUANTITIES}
+        return self._run({name: (self.expressions[name], SHAPES[name]) for name in QUANTITIES}, F, given)
+
+    def _run(self, expressions: dict[str, tuple[Any, tuple[int, ...]]], F: np.ndarray,
+             given: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Each Expression (value shape ``shape``) at every sample of F (M,3,3), chunk by chunk."""
+        m = len(F)
+        out = {name: np.empty((m, *shape)) for name, (_, shape) in expressions.items()}
         c = self.chunk
         for start in range(0, m, c):
             k = min(c, m - start)
@@ -165,10 +185,96 @@ class ReferenceEvaluator:
             if self.eigen is not None:
                 self.eigen.update()
             rows = self._sample_cell[:k]
-            for name in QUANTITIES:
-                values = compat.evaluate(self.expressions[name], self.mesh, self.cells)
-                out[name][start:start + k] = values.reshape(c, *SHAPES[name])[rows]
+            for name, (expression, shape) in expressions.items():
+                values = compat.evaluate(expression, self.mesh, self.cells)
+                out[name][start:start + k] = values.reshape(c, *shape)[rows]
         return out
+
+    def _given(self, F: np.ndarray, fields: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        F = np.asarray(F, dtype=np.float64).reshape(-1, 3, 3)
+        given = {}
+        for name in self.fields:
+            if name not in fields:
+                raise ValueError(f"{self.material} needs the field {name}")
+            given[name] = self._as_samples(name, fields[name], len(F), FIELD_SHAPES[name])
+        return F, given
+
+    # --- the diagnosis's parameter fit and energy terms (model.verify.diagnosis) ---------------------------
+
+    def _hold_parameters(self) -> None:
+        numbers = {}
+        for f in dataclasses.fields(self.law) if dataclasses.is_dataclass(self.law) else ():
+            value = getattr(self.law, f.name)
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+                numbers[f.name] = float(value)
+        if not numbers:
+            raise ValueError(f"{self.material}: no number parameter to hold as a runtime value")
+        self.constants = {name: (fem.Constant(self.mesh, value), value) for name, value in numbers.items()}
+        self.law = with_parameter_values(self.law, {name: (c, [value]) for name, (c, value) in self.constants.items()})
+
+    def set_parameters(self, values: dict[str, float]) -> None:
+        """The runtime parameters (``runtime_parameters``) at ``values``, the others at the law's own numbers."""
+        for name, (constant, own) in self.constants.items():
+            constant.value = float(values.get(name, own))
+
+    def energy_terms(self) -> list[str]:
+        """The addends of the law's energy psi = sum_k psi_k (its top-level sums, UFL), described: "term k of K"
+        and, when psi_k depends on a field, which ("a fibre term: it depends on a0"). Empty for a law whose
+        P is not d psi_k / dF term by term (a polar rotation, an eigen state)."""
+        return self._energy_terms()[0]
+
+    def _energy_terms(self) -> tuple[list[str], dict[str, Any]]:
+        if self._terms is not None:
+            return self._terms
+        self._terms = ([], {})
+        if self.polar is not None or self.eigen is not None:
+            return self._terms
+        Fv = self._Fv
+        try:
+            psi = self.law.energy(Fv, None)
+        except Exception:  # noqa: BLE001 -- the diagnosis goes on without the law's terms
+            return self._terms
+        addends = _addends(psi)
+        F_coefficient = self.F
+        fields = {function: name for name, function in self.fields.items()}
+        kept, names = [], []
+        for term in addends:
+            coefficients = ufl.algorithms.extract_coefficients(term)
+            if F_coefficient not in coefficients:
+                continue
+            on = sorted(fields[c] for c in coefficients if c in fields)
+            kept.append(term)
+            names.append(on)
+        if len(kept) < 2:
+            return self._terms
+        count = len(kept)
+        described = []
+        for k, on in enumerate(names):
+            text = f"term {k + 1} of {count} of the law's energy"
+            if "a0" in on or "s0" in on:
+                text += f" (a fibre term: it depends on {', '.join(on)})"
+            elif on:
+                text += f" (it depends on {', '.join(on)})"
+            described.append(text)
+        P = [ufl.diff(t, Fv) for t in kept]
+        A = [ufl.diff(Pk, Fv) for Pk in P]
+        try:
+            with compat.self_jit_lock(self.mesh.comm):
+                expressions = {"psi": (fem.Expression(ufl.as_vector(kept), self._points), (count,)),
+                               "P": (fem.Expression(ufl.as_tensor(P), self._points), (count, 3, 3)),
+                               "A": (fem.Expression(ufl.as_tensor(A), self._points), (count, 3, 3, 3, 3))}
+        except Exception:  # noqa: BLE001 -- the diagnosis goes on without the law's terms
+            return self._terms
+        self._terms = (described, expressions)
+        return self._terms
+
+    def evaluate_terms(self, F: np.ndarray, **fields: np.ndarray) -> dict[str, np.ndarray]:
+        """{'psi': (M,K), 'P': (M,K,3,3), 'A': (M,K,3,3,3,3)}: each term of ``energy_terms`` and its derivatives."""
+        _, expressions = self._energy_terms()
+        if not expressions:
+            return {}
+        F, given = self._given(F, fields)
+        return self._run(expressions, F, given)
 
     def tangent_undefined(self, F: np.ndarray, **fields: np.ndarray) -> np.ndarray:
         """(N,) bool: the law's own statement of where A = dP/dF does not exist (forms.law.Law.tangent_undefined)."""
@@ -180,7 +286,14 @@ class ReferenceEvaluator:
         return np.asarray(self.law.stress_undefined(np.reshape(F, (-1, 3, 3)), **fields), dtype=bool)
 
     def parameters(self) -> dict[str, Any]:
-        return self.law.parameters()
+        return self.numeric_law.parameters()
+
+
+def _addends(expression: Any) -> list[Any]:
+    """The operands of the top-level sums of a UFL scalar: a + (b + c) -> [a, b, c]."""
+    if isinstance(expression, ufl.classes.Sum):
+        return [t for operand in expression.ufl_operands for t in _addends(operand)]
+    return [expression]
 
 
 def reference(material: str, params: dict[str, Any], F: np.ndarray, **fields: np.ndarray) -> dict[str, np.ndarray]:

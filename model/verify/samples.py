@@ -66,26 +66,29 @@ def deformation_samples(n: int, seed: int, inverted: bool = True,
     if n < 1:
         raise ValueError("--samples must be >= 1")
     rng = np.random.default_rng(seed)
-    labels = ["identity"] + [KINDS[1 + i % (len(KINDS) - 1)] for i in range(n - 1)]
+    kind = np.concatenate([[0], 1 + np.arange(n - 1) % (len(KINDS) - 1)])  # the identity once, then cycling
+    labels = [KINDS[k] for k in kind]
     F = np.empty((n, 3, 3))
-    for i, kind in enumerate(labels):
-        if kind == "identity":
-            F[i] = np.eye(3)
-        elif kind == "rotation":
-            F[i] = _rotations(rng, 1)[0]
-        elif kind == "uniaxial":
-            a, b = rng.uniform(0.5, 2.0, 2)
-            F[i] = _from_singular_values(rng, np.array([[a, b, b]]))[0]
-        elif kind == "isotropic":
-            F[i] = rng.uniform(0.6, 1.6) * _rotations(rng, 1)[0]
-        elif kind == "large_stretch":
-            F[i] = _from_singular_values(rng, rng.uniform(0.3, 3.0, (1, 3)))[0]
-        elif kind == "nearly_flat":
-            sigma = np.array([[rng.uniform(0.8, 1.5), rng.uniform(0.8, 1.5), 10 ** rng.uniform(-4, -2)]])
-            F[i] = _from_singular_values(rng, sigma)[0]
-        else:
-            G = np.eye(3) + 0.3 * rng.standard_normal((3, 3))
-            F[i] = G if np.linalg.det(G) > 0 else G @ np.diag([1.0, 1.0, -1.0])
+    at = {name: np.flatnonzero(kind == k) for k, name in enumerate(KINDS)}  # each kind drawn as one array
+    F[at["identity"]] = np.eye(3)
+    i = at["rotation"]
+    F[i] = _rotations(rng, len(i))
+    i = at["uniaxial"]
+    ab = rng.uniform(0.5, 2.0, (len(i), 2))
+    F[i] = _from_singular_values(rng, ab[:, [0, 1, 1]])
+    i = at["isotropic"]
+    F[i] = rng.uniform(0.6, 1.6, len(i))[:, None, None] * _rotations(rng, len(i))
+    i = at["large_stretch"]
+    F[i] = _from_singular_values(rng, rng.uniform(0.3, 3.0, (len(i), 3)))
+    i = at["nearly_flat"]
+    sigma = np.column_stack([rng.uniform(0.8, 1.5, len(i)), rng.uniform(0.8, 1.5, len(i)),
+                             10 ** rng.uniform(-4, -2, len(i))])
+    F[i] = _from_singular_values(rng, sigma)
+    i = at["random"]
+    G = np.eye(3) + 0.3 * rng.standard_normal((len(i), 3, 3))
+    negative = np.linalg.det(G) <= 0
+    G[negative] = G[negative] @ np.diag([1.0, 1.0, -1.0])
+    F[i] = G
     if inverted:
         reflection = np.diag([1.0, 1.0, -1.0])
         M = F @ reflection if targets is None else F @ reflection @ targets
@@ -100,8 +103,9 @@ def deformation_samples(n: int, seed: int, inverted: bool = True,
             kinks = rng.permutation(repeated)[: max(1, count // 2)]
         flip = np.concatenate([kinks, rng.permutation(distinct)[: count - len(kinks)]])
         F[flip] = F[flip] @ reflection
+        is_kink = set(kinks.tolist())
         for i in flip:
-            labels[i] = f"inverted_{labels[i]}" + ("_kink" if i in kinks else "")
+            labels[i] = f"inverted_{labels[i]}" + ("_kink" if i in is_kink else "")
     return F, labels
 
 
@@ -207,27 +211,25 @@ def avoid_undefined(F: np.ndarray, labels: list[str], fields: dict[str, np.ndarr
     counts = {"fibre_breakpoint": 0, "tangent_undefined": 0, "stuck": 0}
     directions = {k: np.broadcast_to(fields[k], (n, 3)) for k in DIRECTIONS if k in fields}
     moved = np.zeros(n, dtype=bool)
-    for _ in range(rounds):
-        near = fibre_breakpoints(F, directions)
-        if not near.any():
+    for _ in range(rounds):  # every sample near a breakpoint moved at once
+        near = np.flatnonzero(fibre_breakpoints(F, directions))
+        if not len(near):
             break
-        counts["fibre_breakpoint"] += int(np.sum(near & ~moved))
-        moved |= near
-        for i in np.flatnonzero(near):
-            stretch = np.eye(3)
-            for d in directions.values():
-                e = rng.uniform(0.01, 0.05) * rng.choice([-1.0, 1.0])
-                stretch = stretch + e * np.outer(d[i], d[i])
-            F[i] = F[i] @ stretch
+        counts["fibre_breakpoint"] += int(np.sum(~moved[near]))
+        moved[near] = True
+        stretch = np.broadcast_to(np.eye(3), (len(near), 3, 3)).copy()
+        for d in directions.values():
+            e = rng.uniform(0.01, 0.05, len(near)) * rng.choice([-1.0, 1.0], len(near))
+            stretch += e[:, None, None] * np.einsum("ni,nj->nij", d[near], d[near])
+        F[near] = F[near] @ stretch
     if undefined is not None:
         for _ in range(rounds):
-            bad = np.asarray(undefined(F, **fields), dtype=bool)
-            if not bad.any():
+            bad = np.flatnonzero(np.asarray(undefined(F, **fields), dtype=bool))
+            if not len(bad):
                 break
-            counts["tangent_undefined"] += int(np.sum(bad & ~moved))
-            moved |= bad
-            for i in np.flatnonzero(bad):
-                F[i] = F[i] @ (np.eye(3) + 0.02 * rng.standard_normal((3, 3)))
+            counts["tangent_undefined"] += int(np.sum(~moved[bad]))
+            moved[bad] = True
+            F[bad] = F[bad] @ (np.eye(3) + 0.02 * rng.standard_normal((len(bad), 3, 3)))
         counts["stuck"] = int(np.sum(undefined(F, **fields)))
     counts["stuck"] += int(np.sum(fibre_breakpoints(F, directions)))
     for i in np.flatnonzero(moved):
