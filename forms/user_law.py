@@ -11,7 +11,7 @@ The file contract (examples/guccione_law.py is one)::
         "C": {"meaning": "stiffness", "unit": "Pa (stress)", "bounds": (0, None), "exclusive": True},
         "b": {"meaning": "exponent", "unit": "dimensionless", "bounds": (0, None)},
     }
-    FIELDS = ("a0",)                        # optional: fields the law needs, among S, a0, alpha
+    FIELDS = ("a0",)                        # optional: fields the law needs, among S, a0, s0, alpha
     VOLUMETRIC = "J - 1"                    # optional: g(F) of the volumetric term, "J - 1" or "ln J"
     FORMULA = "(C/2)(exp(b (I1 - 3)) - 1)"  # optional: one line for the documentation
 
@@ -26,7 +26,7 @@ The file contract (examples/guccione_law.py is one)::
   a keyword's default is the parameter's default (a number); one without a default is required.
   Values are real finite numbers.
 - ``FIELDS`` names the fields the law needs: ``S`` (3x3 shape target), ``a0`` (unit fibre direction,
-  a 3-vector) and ``alpha`` (activation, a scalar). Each is also a keyword argument of the function
+  a 3-vector), ``s0`` (unit sheet direction, orthogonal to a0) and ``alpha`` (activation, a scalar). Each is also a keyword argument of the function
   and receives a UFL expression (a per-cell Function, a Constant, ...).
 - ``PARAMETERS`` (optional, every key a parameter of the function) gives per parameter ``meaning``
   (one line), ``unit`` (e.g. "Pa (stress)", "dimensionless"), and ``bounds = (low, high)`` (None: no
@@ -109,6 +109,7 @@ class UserLaw(Law):
     kappa: float = 0.0
     S: Any = None
     a0: Any = None
+    s0: Any = None
     alpha: Any = None
 
     name: ClassVar[str] = "user law"
@@ -420,6 +421,7 @@ def _sample_value(p: Parameter) -> float:
 _SAMPLE_FIELDS: dict[str, Callable[[], Expr]] = {
     "S": lambda: ufl.Identity(3),
     "a0": lambda: ufl.as_vector([1.0, 0.0, 0.0]),
+    "s0": lambda: ufl.as_vector([0.0, 1.0, 0.0]),
     "alpha": lambda: ufl.as_ufl(0.5),
 }
 

@@ -8,6 +8,7 @@ default sampling, single precision and atol, and the command line's --atol / --n
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -131,3 +132,38 @@ def test_command_line_atol_and_no_inverted(tmp_path) -> None:
     assert "never compared: det F < 0" in fail.stdout
     ok = subprocess.run([*check_cmd, "--atol", "2e-6"], capture_output=True, text=True, env=environment(), cwd=ROOT)
     assert ok.returncode == 0 and "atol 2e-06" in ok.stdout, ok.stdout
+
+
+def test_the_documented_reports_are_what_the_shipped_commands_print(tmp_path) -> None:
+    """docs/verify.md shows a report of each diagnosis kind for the files examples/verify_diagnosis.py writes:
+    every line shown must still be printed, and each file gets the diagnosis of its kind."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("verify_diagnosis", ROOT / "examples" / "verify_diagnosis.py")
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    paths = example.write_cases(tmp_path)
+    text = (ROOT / "docs" / "verify.md").read_text()
+    blocks = re.findall(r"```\n\$ softtissue verify check results/verify_diagnosis/(\w+)\.npz\n(.*?)```", text, re.S)
+    assert sorted(kind for kind, _ in blocks) == sorted(example.CASES)
+    from model.verify import check_file
+
+    for kind, block in blocks:
+        report = check_file(paths[kind])
+        assert not report.ok and {d.kind for d in report.diagnoses} == {kind}, (kind, report.hints)
+        printed = str(report).splitlines()
+        for line in block.strip().splitlines():
+            assert line in printed, (kind, line)
+
+
+def test_a_law_of_your_own_may_take_the_sheet_direction(tmp_path) -> None:
+    """FIELDS = ("a0", "s0") was accepted by the contract but failed to load (a KeyError, then a TypeError)."""
+    law = tmp_path / "sheet.py"
+    law.write_text("import ufl\nFIELDS = ('a0', 's0')\n\n\ndef psi(F, *, mu=1.0, k=2.0, a0=None, s0=None):\n"
+                   "    C = F.T * F\n    return 0.5 * mu * (ufl.tr(C) - 3) + k * (ufl.inner(s0, C * s0) - 1) ** 2\n")
+    data = emit(f"{law}:psi", {}, samples=7, seed=1, out=tmp_path / "ref.npz")
+    assert data["s0"].shape == (7, 3) and np.allclose(np.sum(data["s0"] * data["a0"], axis=1), 0.0)
+    Cs = np.einsum("nji,njk,nk->ni", data["F"], data["F"], data["s0"])
+    P = data["F"] + 4 * 2.0 * (np.einsum("ni,ni->n", data["s0"], Cs) - 1)[:, None, None] * np.einsum(
+        "nij,nj,nk->nik", data["F"], data["s0"], data["s0"])
+    assert check(data["F"], P=P, law=f"{law}:psi", fields={"a0": data["a0"], "s0": data["s0"]}).ok
