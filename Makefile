@@ -56,7 +56,8 @@ RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian en
   gingerbread_mesh fibres polar_inverted parallel results_one_run provenance cli demos nested_jacobian \
   linear_presets scale_check loadstepping line_search petsc_options contact body_contact twin_muscles \
   self_contact membrane membrane_file verify_api verify_element verify_files cold_cache_arguments render \
-  render_mesh config_errors mesh_checks admissibility path_following conflicts signals))
+  render_mesh config_errors mesh_checks admissibility path_following conflicts signals verify_diagnosis \
+  verify_planted verify_speed))
 
 #: Of these, on 2 ranks: the partition-dependent paths (distributed meshes and their files, outputs, the nested
 #: blocks' index sets, contact between bodies, the JIT cache shared by the ranks).

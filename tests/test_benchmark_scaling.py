@@ -18,12 +18,14 @@ from conftest import ROOT, environment, serial_only
 def test_scaling_benchmark_smallest_sizes(tmp_path: Path) -> None:
     env = {**environment(), "OPENBLAS_NUM_THREADS": "1"}
     done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "scaling.py"), "--cases", "p2_compressible,th_0.4999",
+        [sys.executable, str(ROOT / "benchmarks" / "scaling.py"), "--cases", "th_0.4999",
          "--bar-sizes", "2", "3", "--ranks", "1", "2", "--limit", "300", "--out", str(tmp_path)],
         capture_output=True, text=True, timeout=900, env=env, cwd=ROOT)
     assert done.returncode == 0, done.stderr[-2000:]
     rows = json.loads((tmp_path / "scaling.json").read_text())
-    assert len(rows) == 2 * 2 * 2 * 2  # cases x ranks x presets x sizes
+    # the Taylor-Hood case only (its iterative preset is the Schur one; the P2 displacement presets run in
+    # tests/test_linear_presets): 8 runs instead of 16, about 150 s of CI
+    assert len(rows) == 1 * 2 * 2 * 2  # cases x ranks x presets x sizes
     for r in rows:
         assert r["status"] == "completed", r
         assert r["dofs"] > 0 and r["wall"] > 0 and r["peak_mb"] > 100 and r["newton"] >= 2, r

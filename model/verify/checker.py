@@ -242,8 +242,8 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
         q, keep = row.quantity, compared[row.quantity]
         scale = np.maximum(np.linalg.norm(np.reshape(ref[q], (n, -1)), axis=1), M)
         quantity = diagnosis.Quantity(q, np.asarray(user[q], dtype=np.float64), np.asarray(ref[q], dtype=np.float64),
-                                      keep, rtol * scale + atol, _converter(q, layout, F, user),
-                                      "psi" if q == "psi" else ("A" if q == "A" else "P"))
+                                      keep, rtol * scale + atol, convert=_converter(q, layout, F, user),
+                                      family="psi" if q == "psi" else ("A" if q == "A" else "P"))
         identity = np.flatnonzero(features["identity"] & keep)
         if len(identity):
             details.append(diagnosis.detail(quantity, int(identity[0]), label(int(identity[0])), features,
@@ -258,17 +258,20 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
                 at_transpose = _in_layout(layout, Ft, tv["psi"], tv["P"], tv["A"], user)
                 at_transpose["P_ijkl"] = tv["P"]
 
-        def layout_hints(q: str = q, keep: np.ndarray = keep) -> list[str]:
+        def layout_hints(index: np.ndarray | None, q: str = q, keep: np.ndarray = keep) -> list[str]:
             if q == "psi":
                 return []
             keep = keep & np.all(np.isfinite(values["P"].reshape(n, -1)), axis=1)
+            if index is not None:  # the layout search on the screened samples only (diagnosis.SCREEN)
+                keep = keep & np.isin(np.arange(n), index)
             keep &= np.all(np.isfinite(A_ref.reshape(n, -1)), axis=1)
             with np.errstate(all="ignore"):
                 return layouts.hints(layout, F[keep], values["P"][keep], A_ref[keep],
                                      user_tangent=user[q][keep] if q == "A" else None,
                                      user_stress=user[q][keep] if q != "A" else None, measure=MEASURE.get(q))
 
-        def law_terms(quantity: diagnosis.Quantity = quantity) -> list[tuple[str, np.ndarray]]:
+        def law_terms(index: np.ndarray | None,
+                      quantity: diagnosis.Quantity = quantity) -> list[tuple[str, np.ndarray]]:
             if not term_names:
                 term_names.extend(evaluator.energy_terms() or ["none"])
                 if term_names != ["none"]:
@@ -277,11 +280,13 @@ def check(F: Any, *, psi: Any = None, P: Any = None, tangent: Any = None, law: s
             if not term_values or projected:
                 return []
             values = term_values[quantity.family]
+            if index is not None:
+                values = values[index]
             out = []
             for k, name in enumerate(term_names):
                 T = values[:, k]
                 with np.errstate(all="ignore"):
-                    out.append((name, quantity.convert(T) if quantity.convert is not None else T))
+                    out.append((name, quantity.convert(T, index) if quantity.convert is not None else T))
             return out
 
         quantities[q] = quantity
@@ -316,10 +321,10 @@ def _parameter_diagnosis(diagnoses: list[diagnosis.Diagnosis], quantities: dict[
     except Exception:  # noqa: BLE001 -- no parameter hint for a law whose numbers UFL cannot hold
         return diagnoses
 
-    def reference_at(values: dict[str, float]) -> Arrays:
+    def reference_at(values: dict[str, float], index: np.ndarray) -> Arrays:
         runtime.set_parameters(values)
-        v = runtime.evaluate(F, **fields)
-        return _in_layout(layout, F, v["psi"], v["P"], v["A"], user)
+        v = runtime.evaluate(F[index], **{k: f[index] for k, f in fields.items()})
+        return _in_layout(layout, F[index], v["psi"], v["P"], v["A"], {k: u[index] for k, u in user.items()})
 
     own = {name: value for name, (_, value) in runtime.constants.items()}
     hint = diagnosis.parameter_hint(open_, own, reference_at, law)
@@ -341,17 +346,18 @@ def modulus(evaluator: ReferenceEvaluator, n: int, fields: Arrays) -> float | No
 
 
 def _converter(q: str, layout: str, F: np.ndarray, user: Arrays) -> Any:
-    """Term values in P form (N,3,3) or ijkl A form -> the user's measure / layout (linear maps)."""
+    """(term values in P form (n,3,3) or ijkl A form, the samples' indices or None) -> the user's measure /
+    layout (linear maps)."""
     if q == "psi":
         return None
     if q == "A":
-        zero = np.zeros((len(F), 3, 3))
-        return lambda T: layouts.from_reference(layout, F, zero, T)["tangent"]
+        return lambda T, index: layouts.from_reference(layout, F if index is None else F[index],
+                                                       np.zeros((len(T), 3, 3)), T)["tangent"]
     if q == "P":
-        return lambda T: T
+        return lambda T, index: T
 
-    def stress(T: np.ndarray) -> np.ndarray:
-        out = layouts.stress_from_P(MEASURE[q], F, T)
+    def stress(T: np.ndarray, index: np.ndarray | None) -> np.ndarray:
+        out = layouts.stress_from_P(MEASURE[q], F if index is None else F[index], T)
         return layouts.to_voigt(out) if user[q].shape[1:] == (6,) else out
     return stress
 

@@ -25,8 +25,8 @@ For a failing quantity (``diagnose``):
   match the law with one parameter p changed to s p: ``parameter_hint``, over every failing quantity
   without a cause), and, when none of those explains it, ``region`` (every failing sample lies in one region, the
   narrowest of: det F < 0, a nearly flat element, the rest state (identity, rotations), compression
-  J < 1, extension J > 1, a large stretch, a compressed or stretched fibre; and every sample outside
-  it agrees).
+  J < 1, extension J > 1, a large stretch, a compressed or stretched fibre, holding at most 60 % of the
+  compared samples; every sample outside it agrees, and at least 3 in it fail).
 """
 
 from __future__ import annotations
@@ -40,8 +40,10 @@ import numpy as np
 LARGE = 1.5
 #: a smallest principal stretch below this is a nearly flat element
 FLAT = 0.05
-#: a region hint only when the region holds at most this fraction of the compared samples
+#: a region hint only when the region holds at most this fraction of the compared samples, and at least
+#: REGION_FAILING_MIN of its samples fail (one or two bad samples are no region)
 REGION_SHARE = 0.6
+REGION_FAILING_MIN = 3
 
 
 @dataclass(frozen=True)
@@ -219,8 +221,19 @@ class Quantity:
     ref: np.ndarray
     keep: np.ndarray
     tol: np.ndarray
-    #: (term values in P (N,3,3) or ijkl A form) -> the same in the user's layout / measure; None: psi
-    convert: Callable[[np.ndarray], np.ndarray] | None = None
+    #: (term values in P (n,3,3) or ijkl A form, the samples' indices or None for all) -> the same in the user's
+    #: layout / measure; None: psi
+    convert: Callable[[np.ndarray, np.ndarray | None], np.ndarray] | None = None
+    #: the samples these arrays are of (None: all, else indices into the check's samples)
+    index: np.ndarray | None = None
+
+    def subset(self, index: np.ndarray) -> Quantity:
+        """The same quantity at the samples ``index`` (of all of the check's samples)."""
+        return Quantity(self.name, self.user[index], self.ref[index], self.keep[index], self.tol[index],
+                        convert=self.convert, index=index, family=self.family)
+
+    def to_layout(self, T: np.ndarray) -> np.ndarray:
+        return self.convert(T, self.index) if self.convert is not None else T
     #: ("P" | "A" | "psi"): which TERMS a difference is regressed on
     family: str = "psi"
 
@@ -308,23 +321,27 @@ def column_major_hint(q: Quantity, at_transpose: np.ndarray | None) -> Diagnosis
     return None
 
 
-def term_hint(q: Quantity, F: np.ndarray, params: dict[str, float]) -> Diagnosis | None:
-    """yours - ref = c T for one of ``terms(q.family, F)`` (converted into the user's layout)."""
-    for name, values in terms(q.family, F):
-        T = q.convert(values()) if q.convert is not None else values()
+def term_hint(q: Quantity, F: np.ndarray, params: dict[str, float],
+              only: str | None = None) -> tuple[str, Diagnosis] | None:
+    """yours - ref = c T for one of ``terms(q.family, F)`` (converted into the user's layout): (T's name, the
+    hint); F are the quantity's samples; ``only``: that term alone."""
+    for term, values in terms(q.family, F):
+        if only is not None and term != only:
+            continue
+        T = q.to_layout(values())
         c = _fit(q, T)
         if c is None or abs(c) == 0 or not _explains(q, q.ref + c * T):
             continue
         named = name_coefficient(c, params)
         coefficient = f" (c = {named})" if named else ""
-        name = f"({name})" if " - " in name or " + " in name else name
+        name = f"({term})" if " - " in term or " + " in term else term
         if c < 0:
             meaning = (f"a term {_number(-c)} {name} of the reference is missing from yours (or yours has it with "
                        "a smaller coefficient)")
         else:
             meaning = f"yours has an extra {_number(c)} {name} (or the reference's term has a larger coefficient)"
-        return Diagnosis(q.name, "term", f"{q.name}: yours - reference = {_number(c)} {name} at every compared "
-                                         f"sample{coefficient}: {meaning}")
+        return term, Diagnosis(q.name, "term", f"{q.name}: yours - reference = {_number(c)} {name} at every "
+                                               f"compared sample{coefficient}: {meaning}")
     return None
 
 
@@ -340,7 +357,8 @@ def region_hint(q: Quantity, features: dict[str, np.ndarray]) -> Diagnosis | Non
     for name, region, suggestion in _regions(features):
         region = region & k
         size = int(region.sum())
-        if np.any(failing & ~region) or size > REGION_SHARE * compared or size == compared:
+        bad = int(np.sum(failing & region))
+        if np.any(failing & ~region) or size > REGION_SHARE * compared or size == compared or bad < REGION_FAILING_MIN:
             continue
         if found is None or size < found[0]:
             found = (size, name, suggestion, int(np.sum(failing & region)))
@@ -351,9 +369,13 @@ def region_hint(q: Quantity, features: dict[str, np.ndarray]) -> Diagnosis | Non
                                        f"fail, all {compared - size} others agree; look for {suggestion}")
 
 
-def law_term_hint(q: Quantity, law_terms: list[tuple[str, np.ndarray]]) -> Diagnosis | None:
-    """yours - ref = c psi_k (or its P, A) for one addend psi_k of the law's own energy (UFL), in your layout."""
+def law_term_hint(q: Quantity, law_terms: list[tuple[str, np.ndarray]],
+                  only: str | None = None) -> tuple[str, Diagnosis] | None:
+    """yours - ref = c psi_k (or its P, A) for one addend psi_k of the law's own energy (UFL), in your layout:
+    (its description, the hint); ``only``: that term alone."""
     for description, T in law_terms:
+        if only is not None and description != only:
+            continue
         c = _fit(q, T)
         if c is None or abs(c) < 1e-9 or not _explains(q, q.ref + c * T):
             continue
@@ -363,54 +385,83 @@ def law_term_hint(q: Quantity, law_terms: list[tuple[str, np.ndarray]]) -> Diagn
             meaning = f"yours has the {description} twice"
         else:
             meaning = f"yours has the {description} times {_number(1 + c)}"
-        return Diagnosis(q.name, "term", f"{q.name}: yours - reference = {_number(c)} x ({description}) at every "
-                                         f"compared sample: {meaning}")
+        return description, Diagnosis(q.name, "term", f"{q.name}: yours - reference = {_number(c)} x ({description}) "
+                                                      f"at every compared sample: {meaning}")
     return None
 
 
+#: at most this many samples (evenly spaced) are searched for a cause; the cause found is then confirmed on
+#: every sample (the layout search excepted: model.verify.layouts.hints runs on these samples only)
+SCREEN = 1024
+
+
 def diagnose(q: Quantity, F: np.ndarray, params: dict[str, float], features: dict[str, np.ndarray],
-             at_transpose: np.ndarray | None = None, layout_hints: Callable[[], list[str]] | None = None,
-             law_terms: Callable[[], list[tuple[str, np.ndarray]]] | None = None) -> list[Diagnosis]:
+             at_transpose: np.ndarray | None = None,
+             layout_hints: Callable[[np.ndarray | None], list[str]] | None = None,
+             law_terms: Callable[[np.ndarray | None], list[tuple[str, np.ndarray]]] | None = None
+             ) -> list[Diagnosis]:
     """The hints for a failing quantity (module docstring): the first cause that explains the difference;
-    else the region it is confined to; else nothing."""
-    for hint in (zero_hint(q), offset_hint(q), factor_hint(q), transpose_hint(q)):
+    else the region it is confined to; else nothing. Causes are searched on at most SCREEN samples and
+    confirmed on all."""
+    n = len(q.ref)
+    index = None if n <= SCREEN else np.unique(np.linspace(0, n - 1, SCREEN).astype(int))
+    sub = q if index is None else q.subset(index)
+    F_sub = F if index is None else F[index]
+    T_sub = None if at_transpose is None else (at_transpose if index is None else at_transpose[index])
+
+    def confirmed(found: Diagnosis | None, again: Callable[[], Diagnosis | None]) -> Diagnosis | None:
+        return found if found is None or index is None else again()
+
+    checks: list[tuple[Callable[[Quantity], Diagnosis | None], Callable[[], Diagnosis | None]]] = [
+        (zero_hint, lambda: zero_hint(q)), (offset_hint, lambda: offset_hint(q)),
+        (factor_hint, lambda: factor_hint(q)), (transpose_hint, lambda: transpose_hint(q))]
+    for screen, again in checks:
+        hint = confirmed(screen(sub), again)
         if hint is not None:
             return [hint]
     if layout_hints is not None:  # before F^T: for an isotropic law a tangent at F^T is a permuted layout
-        found = layout_hints()
+        found = layout_hints(index)
         if found:
             return [Diagnosis(q.name, "layout", text) for text in found]
-    hint = column_major_hint(q, at_transpose)
+    hint = confirmed(column_major_hint(sub, T_sub), lambda: column_major_hint(q, at_transpose))
     if hint is not None:
         return [hint]
-    if q.family in ("psi", "P", "A"):
-        with np.errstate(all="ignore"):
-            hint = term_hint(q, F, params)
-            if hint is None and law_terms is not None:
-                hint = law_term_hint(q, law_terms())
-        if hint is not None:
-            return [hint]
+    with np.errstate(all="ignore"):
+        found_term = term_hint(sub, F_sub, params)
+        if found_term is not None and index is not None:
+            found_term = term_hint(q, F, params, only=found_term[0])
+        if found_term is None and law_terms is not None:
+            found_term = law_term_hint(sub, law_terms(index))
+            if found_term is not None and index is not None:
+                found_term = law_term_hint(q, law_terms(None), only=found_term[0])
+    if found_term is not None:
+        return [found_term[1]]
     hint = region_hint(q, features)
     return [hint] if hint is not None else []
 
 
 def parameter_hint(quantities: list[Quantity], params: dict[str, float],
-                   reference_at: Callable[[dict[str, float]], dict[str, np.ndarray]], law: str,
-                   iterations: int = 12) -> Diagnosis | None:
+                   reference_at: Callable[[dict[str, float], np.ndarray], dict[str, np.ndarray]], law: str,
+                   iterations: int = 12, fit_samples: int = 256) -> Diagnosis | None:
     """Yours match the law with one parameter p changed to p s: for each parameter, s from Gauss-Newton on
-    sum over the quantities and compared samples of |yours_n - ref_n(p s)|^2 / tol_n^2 (derivative by a
-    difference in s, the reference recomputed with p as a runtime value: no compile per value);
-    the hint when the fitted reference agrees with every given quantity at every compared sample."""
+    sum over the quantities and samples of |yours_n - ref_n(p s)|^2 / tol_n^2 (derivative by a difference in
+    s, the reference recomputed with p as a runtime value: no compile per value), fitted on at most
+    ``fit_samples`` of the compared samples (evenly spaced); the hint when the fitted reference agrees with
+    every given quantity at every compared sample. ``reference_at(values, index)``: the reference in the
+    user's layout at the samples ``index``."""
     if not quantities:
         return None
+    compared = np.flatnonzero(np.logical_or.reduce([q.keep for q in quantities]))
+    subset = compared[np.unique(np.linspace(0, len(compared) - 1, min(fit_samples, len(compared))).astype(int))]
 
-    def residual(values: dict[str, float]) -> np.ndarray | None:
+    def residual(values: dict[str, float], index: np.ndarray) -> np.ndarray | None:
         with np.errstate(all="ignore"):
-            ref = reference_at(values)
+            ref = reference_at(values, index)
         parts = []
         for q in quantities:
-            k = q.keep
-            d = (q.user[k] - ref[q.name][k]).reshape(int(k.sum()), -1) / q.tol[k][:, None]
+            k = q.keep[index]
+            u, t = q.user[index][k], q.tol[index][k]
+            d = (u - ref[q.name][k]).reshape(int(k.sum()), -1) / t[:, None]
             parts.append(d.reshape(-1))
         out = np.concatenate(parts)
         return out if np.all(np.isfinite(out)) else None
@@ -419,12 +470,12 @@ def parameter_hint(quantities: list[Quantity], params: dict[str, float],
         if not p or not np.isfinite(p):
             continue
         s = 1.0
-        r = residual({name: p})
+        r = residual({name: p}, subset)
         if r is None:
             continue
         for _ in range(iterations):
             h = 1e-6 * max(abs(s), 1e-3)
-            r_h = residual({name: p * (s + h)})
+            r_h = residual({name: p * (s + h)}, subset)
             if r_h is None:
                 break
             g = (r_h - r) / h
@@ -432,18 +483,18 @@ def parameter_hint(quantities: list[Quantity], params: dict[str, float],
             if gg == 0:
                 break
             step = -float(g @ r) / gg
-            s_new = s + step
-            r_new = residual({name: p * s_new})
+            r_new = residual({name: p * (s + step)}, subset)
             if r_new is None:
                 break
-            s, r = s_new, r_new
+            s, r = s + step, r_new
             if abs(step) <= 1e-12 * max(abs(s), 1.0):
                 break
         if abs(s - 1) < 1e-9 or not np.all(np.abs(r) <= 1.0):
             continue
-        with np.errstate(all="ignore"):
-            ref = reference_at({name: p * s})
-        if not all(np.all(scores(q.user[q.keep], ref[q.name][q.keep], q.tol[q.keep]) <= 1.0) for q in quantities):
+        final = residual({name: p * s}, compared)
+        if final is None or not all(
+                np.all(scores(q.user[compared][q.keep[compared]], ref_q, q.tol[compared][q.keep[compared]]) <= 1.0)
+                for q, ref_q in _at(quantities, reference_at({name: p * s}, compared), compared)):
             continue
         names = ", ".join(q.name for q in quantities)
         return Diagnosis(quantities[0].name, "parameter",
@@ -451,6 +502,10 @@ def parameter_hint(quantities: list[Quantity], params: dict[str, float],
                          f"{_number(p)}) at every compared sample: a parameter off by a factor, or another "
                          "convention for it (lmbda of plane stress, K for lmbda, E and nu converted otherwise)")
     return None
+
+
+def _at(quantities: list[Quantity], ref: dict[str, np.ndarray], index: np.ndarray) -> list[tuple[Quantity, np.ndarray]]:
+    return [(q, ref[q.name][q.keep[index]]) for q in quantities]
 
 
 # --- what the report shows of a failing quantity --------------------------------------------------------
