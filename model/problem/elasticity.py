@@ -80,6 +80,7 @@ from model import compat
 from model.domain import Domain
 from model.fields.eigen import EigenField
 from model.fields.polar import PolarField
+from model.problem.parameters import hold_parameters
 
 log = logging.getLogger(__name__)
 
@@ -208,6 +209,8 @@ class ElasticityProblem:
         self._energy_forms: dict[str, compat.Form] | None = None
         #: per-cell input fields written with the results (fibre directions, activation), by name
         self.cell_fields: dict[str, fem.Function] = {}
+        #: per material (in order): the law parameters held as runtime values, {name: fem.Constant}
+        self.held_parameters: list[dict[str, fem.Constant]] = []
         for i, (region, law) in enumerate(self.materials):
             if formulation == "displacement" and law.incompressible:
                 value = getattr(law, law.bulk_parameter, law.bulk_penalty)
@@ -235,7 +238,11 @@ class ElasticityProblem:
         return self.ds(self.domain.boundaries[name])
 
     def _add_material(self, region: str, law: Law) -> Law:
-        """Add the law's terms; returns the law as used (with its eigen state when it needs one)."""
+        """Add the law's terms; returns the law as used (with its eigen state when it needs one), with its numbers.
+
+        The terms are built from the law holding its parameters as runtime values (model.problem.parameters:
+        fem.Constants, so that the same law with other numbers reuses the compiled kernels); the constants are
+        ``held_parameters[material index]``, {name: constant}."""
         dx = self.energy_measure(region)
         R = None
         if getattr(law, "needs_eigenbasis", False):
@@ -249,15 +256,13 @@ class ElasticityProblem:
                                self.domain.region_cells(region))
             self.polar_fields.append(polar)
             R = polar.rotation
-        P = law.stress(self.F, R, self.p)
+        runtime, held = hold_parameters(law, self.domain.mesh, lambda candidate: self._law_terms(candidate, R))
+        self.held_parameters.append(held)
+        P, energy, pressure, passive = self._law_terms(runtime, R)
         self.internal += ufl.inner(P, ufl.grad(self.v)) * dx
-        # the mixed formulation's energy is Pi(u, p) = W + p g - p^2/(2 kappa): (kappa/2) g(u)^2 of the discrete u
-        # is not the volumetric energy of a Taylor-Hood solution, whose p is kappa g only in the weak sense
-        energy = law.energy(self.F, R) if self.p is None else law.mixed_energy(self.F, self.p, R)
-        if self.p is not None:
-            self.internal += law.pressure_residual(self.F, self.p) * self.q * dx
+        if pressure is not None:
+            self.internal += pressure * self.q * dx
         self.material_energy += energy * dx
-        passive = self._without_activation(law, R)
         if passive is None:
             self.passive_energy += energy * dx
         else:
@@ -269,6 +274,16 @@ class ElasticityProblem:
         self._energy_forms = None
         self._potential_form = None
         return law
+
+    def _law_terms(self, law: Law, R: ufl.core.expr.Expr | None) -> tuple[Any, Any, Any, Any]:
+        """(P, energy, pressure residual or None, passive energy or None) of a law: the stress P(F; R, p), the
+        energy (the mixed formulation's Pi(u, p) = W + p g - p^2/(2 kappa): (kappa/2) g(u)^2 of the discrete u
+        is not the volumetric energy of a Taylor-Hood solution, whose p is kappa g only in the weak sense), the
+        pressure equation g(F) - p/kappa, and the energy without activation."""
+        P = law.stress(self.F, R, self.p)
+        energy = law.energy(self.F, R) if self.p is None else law.mixed_energy(self.F, self.p, R)
+        pressure = law.pressure_residual(self.F, self.p) if self.p is not None else None
+        return P, energy, pressure, self._without_activation(law, R)
 
     def _without_activation(self, law: Law, R: ufl.core.expr.Expr | None) -> ufl.core.expr.Expr | None:
         """psi(F; alpha = 0) of a law whose activation field alpha is set, else None (nothing to remove)."""
