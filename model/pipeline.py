@@ -71,6 +71,7 @@ from model.output.writer import SUMMARY, ResultWriter, discard, named, on_rank0,
 from model.problem import ElasticityProblem
 from model.problem.conflicts import Condition, Load, check_conditions
 from model.problem.measurements import Volumes, reactions
+from model.problem.parameters import candidates
 from model.signals import Interrupted, StopFlag
 from model.solvers import linear, stability
 from model.solvers.loadstepping import continuation, step_loads
@@ -91,6 +92,34 @@ class Setup:
     contacts: list[Any] = field(default_factory=list)  # model.problem.contact objects
     sliding: list[Any] = field(default_factory=list)  # model.problem.bones.SlidingConstraint
     render: Any = None  # model.fields.embedding.Embedding of output.render_mesh
+
+
+def _parameter_curves(index: int, material: Any, problem: ElasticityProblem) -> Callable[[float], None]:
+    """The load hook that sets material ``index``'s held parameters (model.problem.parameters) to its law at the
+    load factor t, the law made again from the curves' values (E(t), nu(t) -> mu(t), lmbda(t)). ConfigError
+    naming the keys when a curve changes a number the law uses outside UFL (it cannot be held, so it cannot
+    follow a curve)."""
+    curves = material.parameter_curves
+    held = problem.held_parameters[index]
+    base = candidates(problem.materials[index][1])
+    times = sorted({0.0, 1.0, *(t for c in curves.values() for t in c.checked_at)})
+    changing = {name for t in times for name, value in candidates(material.law_at(t)).items()
+                if value != base.get(name)}
+    fixed = sorted(changing - set(held))
+    if fixed:
+        law = problem.materials[index][1].name
+        raise ConfigError(f"material[{index}].{', '.join(curves)}: the curve changes {', '.join(fixed)}, which {law} "
+                          "uses outside UFL (a number in its formulas: it cannot be a runtime value), so it cannot "
+                          "follow a curve; give it a number")
+    log.info("material[%d]: %s follow load curves (held: %s)", index, ", ".join(curves), ", ".join(sorted(changing)))
+
+    def update(t: float) -> None:
+        values = candidates(material.law_at(t))
+        for name in changing:
+            held[name].value = values[name]
+
+    update(0.0)
+    return update
 
 
 def _check_fibre_names(config: RunConfig, domain: Domain) -> None:
@@ -211,6 +240,9 @@ def build(config: RunConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Setup:
             targets.append(target)
         materials.append((m.region, law))
     problem = ElasticityProblem(domain, materials, disc.degree, disc.quadrature_degree, disc.formulation)
+    for i, m in enumerate(config.materials):
+        if m.parameter_curves:
+            problem.add_load_hook(_parameter_curves(i, m, problem))
     for target in targets:
         if target.procedural:
             problem.add_load_hook(target.update)

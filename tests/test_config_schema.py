@@ -255,8 +255,9 @@ def run_config_snapshot(config: Any) -> dict[str, Any]:
 
 
 #: examples that use what the old parser did not have (a law of the user's own; a .geo mesh, probe snap; the
-#: contact keys of the layered arms, self-contact and the twins; path following and curved .geo meshes)
-NEWER = ("guccione_beam", "spindle", "twisting_bar_render", "contact_bodies",
+#: contact keys of the layered arms, self-contact and the twins; path following and curved .geo meshes; parameter
+#: curves)
+NEWER = ("guccione_beam", "guccione_active", "spindle", "twisting_bar_render", "contact_bodies",
          "layered_arm", "layered_arm_touching", "layered_arm_flexion",
          "layered_arm_gap", "layered_arm_touching_flexion", "self_contact_slot", "twin_muscles",
          "thick_sphere", "ventricle")

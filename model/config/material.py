@@ -148,6 +148,10 @@ def _make_law(value: Any, info: ValidationInfo) -> forms.Law:
             if k not in words and (isinstance(v, bool) or not isinstance(v, (int, float))):
                 fail(f"must be a number, got {v!r}", k, up=1)
 
+    numeric = {p.name for p in entry.parameters if not p.choices}  # unknown keys: the law names them below
+    curves = {k: parameter_curve(k, v) for k, v in params.items() if k in numeric and is_curve(v)}
+    if curves:  # the law as it is at t = 1, checked at every point of each curve below
+        params = {**params, **{k: curve(1.0) for k, curve in curves.items()}}
     # errors in the order: unknown parameter (e.g. a misspelt "region"), wrong type, missing or out of range
     try:
         law = entry.make(**params)
@@ -160,7 +164,79 @@ def _make_law(value: Any, info: ValidationInfo) -> forms.Law:
         check_numbers()
         raise
     check_numbers()
+    for k, curve in curves.items():
+        for t in curve.checked_at:
+            try:
+                entry.make(**{**params, k: curve(t)})
+            except forms.ParameterError as err:
+                fail(f"at t = {t:g}: {str(err).removeprefix(f'{name}: ')}", k, up=1)
     return law
+
+
+# --- parameter curves ------------------------------------------------------------------------------------------------
+
+def is_curve(value: Any) -> bool:
+    """A law parameter written as a load curve: a table [[t0, v0], [t1, v1], ...] or an expression of t (a string)."""
+    return isinstance(value, (list, tuple)) or isinstance(value, str)
+
+
+@dataclass(frozen=True)
+class ParameterCurve:
+    """p(t) of a law parameter: a table, piecewise linear in t and constant beyond its ends, or an expression of
+    the load factor t (model.config.expressions; not of the position x). ``checked_at``: the times the law's
+    validation runs at (the table's times, or 0, 0.1, ..., 1 for an expression)."""
+
+    table: tuple[tuple[float, float], ...] = ()
+    expression: str = ""
+    checked_at: tuple[float, ...] = ()
+
+    def __call__(self, t: float) -> float:
+        if self.table:
+            times, values = zip(*self.table)
+            return float(np.interp(t, times, values))
+        from model.config.expressions import compile_expression
+
+        return float(compile_expression(self.expression)(np.zeros((3, 1)), t)[0])
+
+
+def parameter_curve(key_name: str, value: Any) -> ParameterCurve:
+    """The curve of parameter ``key_name`` (a table or an expression of t), or fail naming the key."""
+    if isinstance(value, str):
+        from model.config.expressions import compile_expression, names_used
+
+        try:
+            names = names_used(value)
+            compile_expression(value)
+        except ValueError as err:
+            fail(str(err), key_name, up=1)
+        if "x" in names:
+            fail(f"{value!r}: a law parameter may follow the load factor t, not the position x (a parameter field "
+                 "per cell is not supported: give each region its own material)", key_name, up=1)
+        if "t" not in names:
+            fail(f"must be a number or a load curve, got {value!r} (a string is an expression of the load factor t, "
+                 "and this one does not mention t: write the number)", key_name, up=1)
+        curve = ParameterCurve(expression=value, checked_at=tuple(np.linspace(0.0, 1.0, 11)))
+        for t in curve.checked_at:
+            if not np.isfinite(curve(t)):
+                fail(f"{value!r} is not finite at t = {t:g}", key_name, up=1)
+        return curve
+    rows = list(value)
+    if not rows:
+        fail("must be a number, a table [[t0, p0], [t1, p1], ...] or an expression of t, got []", key_name, up=1)
+    table = []
+    for i, row in enumerate(rows):
+        if (not isinstance(row, (list, tuple)) or len(row) != 2
+                or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) for v in row)):
+            fail(f"row {i} is {row!r}: a table's rows are [t, value], two finite numbers", key_name, up=1)
+        if table and row[0] <= table[-1][0]:
+            fail(f"row {i}: times must increase, got {row[0]} after {table[-1][0]}", key_name, up=1)
+        table.append((float(row[0]), float(row[1])))
+    return ParameterCurve(table=tuple(table), checked_at=tuple(t for t, _ in table))
+
+
+def _entry_of(law: forms.Law) -> Any:
+    """The LawEntry a law was made from: a law of the user's own carries it, a built-in one is in the registry."""
+    return getattr(type(law), "entry", None) or forms.REGISTRY[law.name]
 
 
 # --- fibres ----------------------------------------------------------------------------------------------------------
@@ -304,8 +380,11 @@ def _target_function(value: Any, info: ValidationInfo) -> Any:
 
 def _parameters_schema(schema: dict[str, Any]) -> None:
     schema["additionalProperties"] = {
-        "description": "a parameter of the law (E, nu, mu, ...: see the laws' parameters)",
-        "type": ["number", "string"]}
+        "description": "a parameter of the law (E, nu, mu, ...: see the laws' parameters): a number, a word "
+                       "(isotropic = \"stvk\"), or a load curve: a table [[t0, p0], [t1, p1], ...] piecewise linear "
+                       "in t, or an expression of t such as \"3e5 * minimum(2 * t, 1)\" (t: the load factor, or the "
+                       "time of a dynamic run)",
+        "type": ["number", "string", "array"]}
 
 
 class MaterialConfig(Section):
@@ -406,6 +485,18 @@ class MaterialConfig(Section):
             fail(f"missing: {self.law.name} needs the sheet directions s0, e.g. sheets = {{ type = \"constant\", "
                  "origin = [0, 0, 0], insertion = [0, 1, 0] }", "sheets")
         return self
+
+    @property
+    def parameter_curves(self) -> dict[str, ParameterCurve]:
+        """The law's parameters written as load curves, by name."""
+        words = {p.name for p in _entry_of(self.law).parameters if p.choices}
+        return {k: parameter_curve(k, v) for k, v in self._given.items() if k not in words and is_curve(v)
+                and not isinstance(v, bool)}
+
+    def law_at(self, t: float) -> forms.Law:
+        """The law (without its fields) with every curve at load factor ``t``; the others as written."""
+        curves = self.parameter_curves
+        return _entry_of(self.law).make(**{**self._given, **{k: c(t) for k, c in curves.items()}})
 
     @property
     def given_parameters(self) -> dict[str, Any]:

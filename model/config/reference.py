@@ -262,7 +262,34 @@ class _Renderer:
                 self.lines += ["The table's other keys are the parameters of its law (E, nu, mu, ...: numbers, and",
                                "the words of a choice: `isotropic` for muscle and tendon, `variant` for",
                                "stable_neo_hookean); they are listed per law in the last section,",
-                               "[Laws and their parameters](#laws-and-their-parameters).", ""]
+                               "[Laws and their parameters](#laws-and-their-parameters).", "",
+                               "Any numeric parameter, of a built-in law or of a law of your own, may instead be a "
+                               "load curve of",
+                               "the load factor t (the time of a dynamic run): a table `[[t0, p0], [t1, p1], ...]`, "
+                               "piecewise",
+                               "linear in t and constant beyond its ends, or an expression of t such as",
+                               "`\"3e5 * minimum(2 * t, 1)\"` (the functions of [boundary] values; not of the "
+                               "position x). The law is",
+                               "checked at every time of the table (or at t = 0, 0.1, ..., 1), and each step runs "
+                               "with the law made",
+                               "at its load factor (E(t), nu(t) give mu(t), lmbda(t)). For example:", "",
+                               "```toml",
+                               "[[material]]                         # examples/guccione_active.toml",
+                               "law = \"guccione_active_law.py:psi\"",
+                               "Ta = [[0.0, 0.0], [1.0, 1000.0]]     # Pa: the active tension ramped to 1 kPa",
+                               "",
+                               "[[material]]",
+                               "law = \"neo_hookean\"",
+                               "E = \"1e4 * (1 + t)\"                 # Pa: E doubles over the run",
+                               "nu = 0.3",
+                               "```", "",
+                               "A parameter the law uses outside its UFL formulas (a number in Python: the muscle's "
+                               "P2, l_ofl,",
+                               "l_star; the tendon's L2, l_star_t; ...) cannot follow a curve: the run is refused "
+                               "before any",
+                               "solve, naming the key. Every parameter is otherwise a runtime value of the compiled "
+                               "kernels:",
+                               "the same law with other numbers, or with a curve, compiles nothing new.", ""]
         self.lines += [forms.laws_markdown(level=2), ""]
         return "\n".join(self.lines).rstrip() + "\n"
 
