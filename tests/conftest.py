@@ -91,3 +91,20 @@ def environment() -> dict[str, str]:
                OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1")
     return env
+
+
+@pytest.fixture
+def compiles(monkeypatch) -> list[str]:  # noqa: ANN001
+    """The module names FFCx compiled (cache misses: ffcx.codegeneration.jit._compile_objects) while the test
+    runs (tests/test_compile_once.py, tests/test_parameter_curves.py)."""
+    import ffcx.codegeneration.jit as ffcx_jit
+
+    names: list[str] = []
+    original = ffcx_jit._compile_objects
+
+    def counting(decl, ufl_objects, object_names, module_name, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        names.append(module_name)
+        return original(decl, ufl_objects, object_names, module_name, *args, **kwargs)
+
+    monkeypatch.setattr(ffcx_jit, "_compile_objects", counting)
+    return names

@@ -5,26 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import ffcx.codegeneration.jit as ffcx_jit
-import pytest
-from conftest import ROOT
+from conftest import ROOT, serial_only
 
 from model import pipeline
 from model.config import load
 
-
-@pytest.fixture
-def compiles(monkeypatch) -> list[str]:
-    """The module names FFCx compiled (cache misses) while the test runs."""
-    names: list[str] = []
-    original = ffcx_jit._compile_objects
-
-    def counting(decl, ufl_objects, object_names, module_name, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
-        names.append(module_name)
-        return original(decl, ufl_objects, object_names, module_name, *args, **kwargs)
-
-    monkeypatch.setattr(ffcx_jit, "_compile_objects", counting)
-    return names
+#: runs in-process several times; the held parameters on 2 ranks are every MPI test's
+pytestmark = serial_only
 
 
 def _run(path: Path, overrides: dict, out: Path) -> dict:

@@ -9,14 +9,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
-from test_compile_once import compiles  # noqa: F401 -- the fixture
+from conftest import ROOT, serial_only
 
 from model import pipeline
 from model.config import load
 from model.errors import ConfigError
 
 UNIAXIAL = ROOT / "examples" / "uniaxial.toml"
+
+#: runs in-process several times; the held parameters on 2 ranks are every MPI test's
+pytestmark = serial_only
 
 
 def _corners(overrides: dict, out: Path) -> list[list[float]]:
