@@ -491,10 +491,10 @@ def parameter_hint(quantities: list[Quantity], params: dict[str, float],
                 break
         if abs(s - 1) < 1e-9 or not np.all(np.abs(r) <= 1.0):
             continue
-        final = residual({name: p * s}, compared)
-        if final is None or not all(
-                np.all(scores(q.user[compared][q.keep[compared]], ref_q, q.tol[compared][q.keep[compared]]) <= 1.0)
-                for q, ref_q in _at(quantities, reference_at({name: p * s}, compared), compared)):
+        with np.errstate(all="ignore"):  # the fit confirmed on every compared sample
+            fitted = reference_at({name: p * s}, compared)
+        if not all(np.all(scores(q.user[compared][q.keep[compared]], ref_q, q.tol[compared][q.keep[compared]]) <= 1.0)
+                   for q, ref_q in _at(quantities, fitted, compared)):
             continue
         names = ", ".join(q.name for q in quantities)
         return Diagnosis(quantities[0].name, "parameter",
