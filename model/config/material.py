@@ -208,12 +208,13 @@ def parameter_curve(key_name: str, value: Any) -> ParameterCurve:
             names = names_used(value)
             compile_expression(value)
         except ValueError as err:
-            fail(str(err), key_name, up=1)
+            fail(f"must be a number, got {value!r} (or a load curve: a table [[t0, p0], [t1, p1], ...] or an "
+                 f"expression of t; as an expression: {err})", key_name, up=1)
         if "x" in names:
             fail(f"{value!r}: a law parameter may follow the load factor t, not the position x (a parameter field "
                  "per cell is not supported: give each region its own material)", key_name, up=1)
         if "t" not in names:
-            fail(f"must be a number or a load curve, got {value!r} (a string is an expression of the load factor t, "
+            fail(f"must be a number, got {value!r} (a string is a load curve, an expression of the load factor t, "
                  "and this one does not mention t: write the number)", key_name, up=1)
         curve = ParameterCurve(expression=value, checked_at=tuple(np.linspace(0.0, 1.0, 11)))
         for t in curve.checked_at:

@@ -47,7 +47,9 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
     if inverted is None and not _finite_when_inverted(evaluator, samples, seed, drawn):
         inverted = False
         inverted_note = "not drawn: the reference is not finite at det F < 0 (e.g. ln J)"
-    F, labels = deformation_samples(samples, seed, inverted is not False, drawn.get("S"), at_kinks=include_undefined)
+    F, labels = deformation_samples(samples, seed, inverted, drawn.get("S"), at_kinks=include_undefined)
+    if inverted is None and not any(label.startswith("inverted_") for label in labels):
+        inverted_note = "not drawn: too few samples (none with distinct singular values to invert)"
     moved: dict[str, int] = {}
     dropped: dict[str, int] = {}
     keep = np.ones(samples, dtype=bool)
@@ -85,7 +87,7 @@ def emit(material: str, params: dict[str, Any], samples: int, seed: int, out: Pa
 def _finite_when_inverted(evaluator: ReferenceEvaluator, samples: int, seed: int,
                           fields: dict[str, np.ndarray]) -> bool:
     """True when the reference is finite at one or more of the inverted samples deformation_samples draws."""
-    F, labels = deformation_samples(samples, seed, True, fields.get("S"))
+    F, labels = deformation_samples(samples, seed, None, fields.get("S"))
     inverted = np.array([label.startswith("inverted_") for label in labels])
     with np.errstate(all="ignore"):
         values = evaluator.evaluate(F, **fields)

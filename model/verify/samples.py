@@ -49,13 +49,14 @@ def _from_singular_values(rng: np.random.Generator, sigma: np.ndarray) -> np.nda
     return _rotations(rng, len(sigma)) @ (sigma[:, :, None] * np.eye(3)) @ _rotations(rng, len(sigma))
 
 
-def deformation_samples(n: int, seed: int, inverted: bool = True,
+def deformation_samples(n: int, seed: int, inverted: bool | None = None,
                         targets: np.ndarray | None = None, at_kinks: bool = False) -> tuple[np.ndarray, list[str]]:
     """n deformation gradients covering the hard cases, and a label for each (module docstring).
 
     The first sample is the identity, the others cycle through the other kinds. With ``inverted``
-    (the default; a law whose reference is not finite at det F < 0, ln J, has those samples left out
-    of a check with a count), a quarter of them get det F < 0 (F times a reflection), chosen among samples
+    (None, the default: when some sample can be inverted, see below; True: ValueError when none can; a law
+    whose reference is not finite at det F < 0, ln J, has those samples left out of a check with a count),
+    a quarter of them get det F < 0 (F times a reflection), chosen among samples
     where the two smallest singular values of the matrix whose rotation the law uses (F D, or F D S
     with the shape targets ``targets``) differ by more than 5%: for det < 0 the rotation variant of
     the polar decomposition has no derivative where they coincide (K = tr(Sigma) I - Sigma is
@@ -89,11 +90,13 @@ def deformation_samples(n: int, seed: int, inverted: bool = True,
     negative = np.linalg.det(G) <= 0
     G[negative] = G[negative] @ np.diag([1.0, 1.0, -1.0])
     F[i] = G
-    if inverted:
+    if inverted is not False:
         reflection = np.diag([1.0, 1.0, -1.0])
         M = F @ reflection if targets is None else F @ reflection @ targets
         sigma = np.linalg.svd(M, compute_uv=False)
         distinct = np.flatnonzero(sigma[:, 1] - sigma[:, 2] > 0.05 * sigma[:, 1])
+        if len(distinct) == 0 and inverted is None:  # too few samples (the identity, a rotation, ...): none
+            return F, labels
         if len(distinct) == 0:
             raise ValueError("--inverted needs more samples (none with distinct singular values)")
         count = max(1, n // 4)
