@@ -181,7 +181,8 @@ def test_keying_or_indexing_a_value() -> None:
     ("loading.steps=abc", "loading.steps: must be an integer, got 'abc'"),
     ("loading.steps=1.5", "loading.steps: must be an integer, got 1.5"),
     ("output.png=yes", "output.png: must be true or false, got 'yes'"),
-    ("material.0.E=[1]", "material[0].E: must be a number, got [1]"),
+    ("material.0.E=[1]", "material[0].E: must be a number, got [1] (or a load curve: a table [[t0, p0], [t1, p1], "
+                         "...] whose rows are two finite numbers [t, value], or an expression of t; row 0 is 1)"),
 ])
 def test_value_of_the_wrong_type(text: str, message: str) -> None:
     assert error(parse_assignments([text])) == message

@@ -54,7 +54,7 @@ def test_a_user_law_parameter_follows_a_curve(tmp_path: Path) -> None:
     ([[0.0, -1.0], [1.0, 1.0e4]], "material[0].E: at t = 0: "),
     ("1e4 * (1 + x[0])", "material[0].E: '1e4 * (1 + x[0])': a law parameter may follow the load factor t, not"),
     ("1e4 * nope", "material[0].E: must be a number, got '1e4 * nope' (or a load curve: a table"),
-    ([[0.0, "a"]], "material[0].E: row 0 is"),
+    ([[0.0, "a"]], "material[0].E: must be a number, got [[0.0, 'a']] (or a load curve: a table"),
 ])
 def test_bad_curves_are_one_line_errors(value: object, message: str) -> None:
     with pytest.raises(ConfigError) as err:

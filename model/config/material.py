@@ -228,7 +228,8 @@ def parameter_curve(key_name: str, value: Any) -> ParameterCurve:
     for i, row in enumerate(rows):
         if (not isinstance(row, (list, tuple)) or len(row) != 2
                 or any(isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) for v in row)):
-            fail(f"row {i} is {row!r}: a table's rows are [t, value], two finite numbers", key_name, up=1)
+            fail(f"must be a number, got {value!r} (or a load curve: a table [[t0, p0], [t1, p1], ...] whose rows are "
+                 f"two finite numbers [t, value], or an expression of t; row {i} is {row!r})", key_name, up=1)
         if table and row[0] <= table[-1][0]:
             fail(f"row {i}: times must increase, got {row[0]} after {table[-1][0]}", key_name, up=1)
         table.append((float(row[0]), float(row[1])))
