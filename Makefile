@@ -49,7 +49,7 @@ test: test-serial test-mpi
 
 #: The tests of what differs between dolfinx releases (model/compat.py's paths: meshes and their files, every law
 #: assembled and solved, expressions, outputs, the solvers' presets and nested blocks, contact, membranes, verify,
-#: a cold JIT cache, MPI), serially (and some on 2 ranks): CI's Debian 13 leg (.ci/run), 661 of 1,842 tests,
+#: a cold JIT cache, MPI), serially (and some on 2 ranks): CI's Debian 13 leg (.ci/run), 671 of 1,842 tests,
 #: with the cross-release comparison of five runs and every law's verify references (make release-data). The
 #: whole suite on Debian 13: bash .ci/debian13 test.
 RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian energies mesh_files meshes \

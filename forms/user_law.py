@@ -26,8 +26,8 @@ The file contract (examples/guccione_law.py is one)::
   a keyword's default is the parameter's default (a number); one without a default is required.
   Values are real finite numbers.
 - ``FIELDS`` names the fields the law needs: ``S`` (3x3 shape target), ``a0`` (unit fibre direction,
-  a 3-vector), ``s0`` (unit sheet direction, orthogonal to a0) and ``alpha`` (activation, a scalar). Each is also a keyword argument of the function
-  and receives a UFL expression (a per-cell Function, a Constant, ...).
+  a 3-vector), ``s0`` (unit sheet direction, orthogonal to a0) and ``alpha`` (activation, a scalar). Each is
+  also a keyword argument of the function and receives a UFL expression (a per-cell Function, a Constant, ...).
 - ``PARAMETERS`` (optional, every key a parameter of the function) gives per parameter ``meaning``
   (one line), ``unit`` (e.g. "Pa (stress)", "dimensionless"), and ``bounds = (low, high)`` (None: no
   bound), inclusive unless ``exclusive`` is True (both ends) or a pair of booleans (low, high).
