@@ -36,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from forms.polar import polar_rotation_svd
+
 #: principal stretches outside [1/LARGE, LARGE] count as a large stretch
 LARGE = 1.5
 #: a smallest principal stretch below this is a nearly flat element
@@ -56,16 +58,6 @@ class Diagnosis:
 
 
 # --- kinematics per sample ---------------------------------------------------------------------------
-
-def signed_polar(F: np.ndarray) -> np.ndarray:
-    """R = U V^T from F = U Sigma V^T with the sign of the smallest singular value moved into Sigma, so
-    that det R = +1 also at det F < 0 (the rotation of the project's rotation laws)."""
-    U, _, Vt = np.linalg.svd(F)
-    d = np.sign(np.linalg.det(U @ Vt))
-    U = U.copy()
-    U[:, :, 2] *= d[:, None]
-    return U @ Vt
-
 
 def sample_features(F: np.ndarray, a0: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per sample: J = det F, the principal stretches (singular values, ascending), the fibre stretch
@@ -118,7 +110,7 @@ def _kinematic_arrays(F: np.ndarray) -> dict[str, np.ndarray]:
         I1 = np.trace(C, axis1=1, axis2=2)
         E = 0.5 * (C - np.eye(3))
         trE = np.trace(E, axis1=1, axis2=2)
-        R = signed_polar(F)
+        R = polar_rotation_svd(F)
         Jm23 = np.where(J > 0, np.abs(J) ** (-2.0 / 3.0), np.nan)
     return {"J": J, "Finv": Finv, "FinvT": FinvT, "C": C, "B": B, "lnJ": lnJ, "I1": I1, "E": E, "trE": trE,
             "R": R, "Jm23": Jm23}
