@@ -151,16 +151,7 @@ class ReferenceEvaluator:
         the polar rotation (PolarField.update) and the eigen state (EigenField.update) are refreshed
         from them, and psi, P = law.stress(F), A = dP/dF are evaluated at every cell.
         """
-        F = np.asarray(F, dtype=np.float64)
-        if F.size % 9:
-            raise ValueError(f"{self.material}: F of shape {F.shape}; expected (M, 3, 3)")
-        F = F.reshape(-1, 3, 3)
-        m = len(F)
-        given: dict[str, np.ndarray] = {}
-        for name in self.fields:
-            if name not in fields:
-                raise ValueError(f"{self.material} needs the field {name}")
-            given[name] = self._as_samples(name, fields[name], m, FIELD_SHAPES[name])
+        F, given = self._given(F, fields)
         return self._run({name: (self.expressions[name], SHAPES[name]) for name in QUANTITIES}, F, given)
 
     def _run(self, expressions: dict[str, tuple[Any, tuple[int, ...]]], F: np.ndarray,
@@ -191,7 +182,12 @@ class ReferenceEvaluator:
         return out
 
     def _given(self, F: np.ndarray, fields: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        F = np.asarray(F, dtype=np.float64).reshape(-1, 3, 3)
+        """F as (M, 3, 3) and every field of the law as (M, *shape) (one value: for every sample); ValueError
+        naming what is missing or of the wrong shape."""
+        F = np.asarray(F, dtype=np.float64)
+        if F.size % 9:
+            raise ValueError(f"{self.material}: F of shape {F.shape}; expected (M, 3, 3)")
+        F = F.reshape(-1, 3, 3)
         given = {}
         for name in self.fields:
             if name not in fields:
