@@ -57,12 +57,12 @@ RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian en
   linear_presets scale_check loadstepping line_search petsc_options contact body_contact twin_muscles \
   self_contact membrane membrane_file verify_api verify_element verify_files cold_cache_arguments render \
   render_mesh config_errors mesh_checks admissibility path_following conflicts signals verify_diagnosis \
-  verify_speed compile_once parameter_curves))
+  verify_speed compile_once parameter_curves calibration))
 
 #: Of these, on 2 ranks: the partition-dependent paths (distributed meshes and their files, outputs, the nested
 #: blocks' index sets, contact between bodies, the JIT cache shared by the ranks).
 RELEASE_MPI_TESTS := $(addprefix tests/test_,$(addsuffix .py,parallel mesh_files results_one_run cold_cache_arguments \
-  body_contact nested_jacobian))
+  body_contact nested_jacobian calibration))
 
 test-release: setup
 	$(PY) -m pytest -q -n 2 --durations=10 $(RELEASE_TESTS)

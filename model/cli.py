@@ -2,7 +2,8 @@
 [membrane] table is a membrane run: model.config.membrane, model.experiments.membrane_run),
 ``softtissue verify emit|check|seeds|element``, ``softtissue sweep CONFIG --set KEY=V1,V2 --out DIR``
 (model.studies.commands), ``softtissue converge CONFIG --refine KEY=v1,v2,v3 --qoi ...``
-(model.studies.convergence_cli), ``softtissue schema [--out FILE] [--markdown FILE] [--membrane-out FILE]`` and
+(model.studies.convergence_cli), ``softtissue calibrate CONFIG --data FILE --fit KEYS``
+(model.studies.calibration_cli), ``softtissue schema [--out FILE] [--markdown FILE] [--membrane-out FILE]`` and
 ``softtissue --version``. ``python -m model ...`` is the same (model/__main__.py).
 
 Exit codes: run: 0 success, 1 solve failed (SNES reason printed, results kept), 2 bad input, 130 / 143
@@ -10,6 +11,7 @@ interrupted by SIGINT / SIGTERM (results kept, summary.json "interrupted"; conti
 verify check: 0 all quantities within tolerance, 1 otherwise, 2 bad input. verify seeds: 0 when
 the table was produced (a disagreement is a finding, not a failure). sweep: 0 every run completed, 1 some
 failed (the table is written), 2 bad input. converge: 0 written, 1 fewer than 3 meshes ran, 2 bad input.
+calibrate: 0 written, 1 a forward solve failed, 2 bad input.
 Any command stopped by SIGINT / SIGTERM before its work began: 130 / 143 and one line (model.signals). Any
 command that meets a bug of this program: 3 and one line naming the file that holds the traceback
 (SOFTTISSUE_TRACEBACK=1 shows it instead). A write the system refuses (a full disk): 1 and one line naming the path.
@@ -127,6 +129,9 @@ def _parser(prog: str, command: str | None) -> argparse.ArgumentParser:
         from model.studies.convergence_cli import add_parser as add_converge_parser
 
         add_converge_parser(sub)
+        from model.studies.calibration_cli import add_parser as add_calibrate_parser
+
+        add_calibrate_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
                                    "generated from model.config")
     schema_parser.add_argument("--out", type=Path, default=None,

@@ -500,6 +500,12 @@ class MaterialConfig(Section):
         curves = self.parameter_curves
         return _entry_of(self.law).make(**{**self._given, **{k: c(t) for k, c in curves.items()}})
 
+    def law_with(self, values: dict[str, float], t: float = 0.0) -> forms.Law:
+        """The law (without its fields) with ``values`` in place of the table's parameters of those names, the
+        curves of the others at load factor ``t``; validated as the table is (ParameterError naming the value)."""
+        curves = self.parameter_curves
+        return _entry_of(self.law).make(**{**self._given, **{k: c(t) for k, c in curves.items()}, **values})
+
     @property
     def given_parameters(self) -> dict[str, Any]:
         """The law's parameters as the table writes them (name -> value; defaults the table leaves out are not
