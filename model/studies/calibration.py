@@ -409,6 +409,15 @@ class Calibration:
         V = problem.space
         residual = problem.residual_form
         self.s = fem.Function(V, name="sensitivity")
+        # the displacement space (collapsed from the mixed one: its entries' indices in V) and a Function on it, for
+        # the probes' interpolation weights (_probe_weights); made here, on every rank (collective)
+        if problem.formulation == "mixed":
+            displacement_space, parent = V.sub(0).collapse()
+            self._parent = np.asarray(parent, dtype=np.int64)
+        else:
+            displacement_space = V
+            self._parent = np.arange(len(self.s.x.array), dtype=np.int64)
+        self._trial = fem.Function(displacement_space)
         names = sorted({(p.material, n) for p, m in zip(self.parameters, self._maps) for n in m})
         self._dR_forms = {}
         for index, name in names:
@@ -725,27 +734,26 @@ class Calibration:
         return out
 
     def _probe_weights(self, q: Quantity) -> np.ndarray:
-        """The vector w with probe value = w . u (local layout): the probe of each unit vector is its basis value;
-        found by evaluating the basis functions of the probe's cell (one point evaluation per cell dof)."""
-        problem = self.problem
-        V = problem.space
+        """The vector w with probe value = w . u (local layout of the problem's space): the basis functions of the
+        probe's cell evaluated at its point (on the rank that evaluates the probe; zero elsewhere). Local: the
+        displacement space, its map into the mixed space and the trial Function are made collectively in
+        _compile."""
         probes = self.setup.probes
         i = probes.names.index(q.what)
-        out = np.zeros(len(fem.Function(V).x.array))
+        out = np.zeros(len(self.s.x.array))
         if probes.owner[i] != self.comm.rank:
             return out
         cell = int(probes.cells[i])
-        dofmap_of = V.sub(0).dofmap if problem.formulation == "mixed" else V.dofmap
-        bs = dofmap_of.index_map_bs if problem.formulation != "mixed" else 1
-        cell_dofs = compat.cell_dofs(dofmap_of)[cell]
-        trial = fem.Function(V)
-        for dof in cell_dofs:
+        trial, parent = self._trial, self._parent
+        bs = trial.function_space.dofmap.index_map_bs
+        for dof in compat.cell_dofs(trial.function_space.dofmap)[cell]:
             for comp in range(bs):
-                index = dof * bs + comp
+                index = int(dof) * bs + comp
                 trial.x.array[:] = 0.0
                 trial.x.array[index] = 1.0
-                value = _displacement(problem, trial).eval(probes.points[i:i + 1], np.array([cell], dtype=np.int32))
-                out[index] = np.ravel(value)[q.component]
+                value = trial.eval(probes.points[i:i + 1], np.array([cell], dtype=np.int32))
+                out[parent[index]] = np.ravel(value)[q.component]
+        trial.x.array[:] = 0.0
         return out
 
     # -- the fit --
