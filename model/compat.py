@@ -57,6 +57,14 @@ JIT_TIMEOUT = 600
 _JIT_DEFAULTS = getattr(dolfinx.jit, "DOLFINX_DEFAULT_JIT_OPTIONS", None) or \
     dolfinx.jit.DOLFINX_DEFAULT_JIT_PARAMETERS  # 0.9 or 0.5
 _JIT_DEFAULTS["timeout"] = (max(JIT_TIMEOUT, _JIT_DEFAULTS["timeout"][0]), _JIT_DEFAULTS["timeout"][1])
+#: SOFTTISSUE_JIT_CFLAGS="-O0 -g0": the C compiler's flags for the generated kernels in place of dolfinx's "-O2 -g0"
+#: (a user's dolfinx_jit_options.json still wins). `make test` sets it: the suite compiles ~1,800 small-mesh
+#: kernels from a cold cache, and gcc -O0 compiles a fibre law's Jacobian about 3.5x faster while its assembly is
+#: 1.3-2.6x slower (docs/releases.md); runs, benchmarks and notebooks outside the tests keep -O2. The flags are
+#: part of the kernels' cache key, so the two never share compiled modules.
+if os.environ.get("SOFTTISSUE_JIT_CFLAGS", "").split():
+    _JIT_DEFAULTS["cffi_extra_compile_args"] = (os.environ["SOFTTISSUE_JIT_CFLAGS"].split(),
+                                                _JIT_DEFAULTS["cffi_extra_compile_args"][1])
 
 if LEGACY:
     Form = fem.FormMetaClass
