@@ -123,9 +123,9 @@ BUILT_IN: tuple[LawEntry, ...] = (
              "(kappa/2)(J - det S)^2",
              (Parameter("kappa", "volume penalty", PA, lower=0.0, infinite=True),),
              Volume, fields=("S",), bulk_parameter="kappa", volume_constraint="J - det S"),
-    LawEntry("muscle", "Fibre-activated muscle (Teran et al. 2003 / Blemker et al. 2005 form, as in the thesis "
-             "seed): F1 isotropic, lbar the isochoric fibre stretch, s = lbar / l_ofl, f_active and f_passive "
-             "the curves of energies.md.",
+    LawEntry("muscle", "Fibre-activated muscle (Teran et al. 2003 / Blemker et al. 2005 form, as in Turchet's "
+             "thesis, 2018): F1 isotropic, lbar the isochoric fibre stretch, s = lbar / l_ofl, f_active and "
+             "f_passive the curves of docs/laws.md.",
              "F1 + K (ln J)^2 + F2(lbar, alpha), dF2/dlbar = (sigma_max / l_ofl) (f_passive(s) + alpha f_active(s))",
              (*_isotropic_part("isotropic = mooney_rivlin", "isotropic = stvk"),
               Parameter("sigma_max", "maximum isometric fibre stress", PA, default=3.0e5, lower=0.0,
