@@ -28,6 +28,7 @@ import argparse
 import logging
 import os
 import sys
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +36,33 @@ from model import signals
 
 #: the project's distribution (pyproject.toml [project] name): --version
 DISTRIBUTION = "softtissue-reference"
+
+DESCRIPTION = textwrap.fill(
+    "The soft-tissue reference model: run a configuration (run), check your own stress and tangent "
+               "formulas against the reference (verify), sweep parameters (sweep), study mesh convergence "
+               "(converge), fit law parameters to measurements (calibrate), write the configuration schema "
+               "(schema). Each command has its own --help.", 100)
+EPILOG = """examples:
+  softtissue run examples/uniaxial.toml --out results/uniaxial
+  softtissue verify emit --material neo_hookean --param mu=1 --param lmbda=10 --out ref.npz
+  softtissue calibrate examples/calibration/specimen.toml --data examples/calibration/measured.csv --fit material.0.E
+
+exit codes: 0 done, 1 a solve failed or a check is out of tolerance, 2 bad input (one line naming the key),
+3 a bug of this program (the traceback's file is named), 130 / 143 stopped by SIGINT / SIGTERM"""
+RUN_DESCRIPTION = textwrap.fill(
+    "Runs a configuration: builds the mesh, the materials and the loads, checks them (one line naming "
+                   "the key on bad input, before any solve), solves with Newton and load stepping, and writes "
+                   "summary.json, XDMF, VTU and a PNG to the output folder after every converged step. A file with "
+                   "a [membrane] table is a membrane run.", 100)
+RUN_EPILOG = """examples:
+  softtissue run examples/uniaxial.toml --out results/uniaxial
+  softtissue run examples/uniaxial.toml --set material.0.E=2e5 --set loading.steps=20
+  softtissue run examples/isometric.toml --restart results/demo
+  mpirun -n 2 softtissue run examples/cook.toml --out results/cook      (on 2 MPI ranks: the same answer)
+
+exit codes: 0 completed, 1 the solve failed (the message says why and what can help; the converged steps are
+kept), 2 bad input (one line naming the key), 3 a bug of this program, 130 / 143 interrupted by SIGINT /
+SIGTERM (the completed steps are kept; continue with --restart DIR)"""
 
 #: commands whose parsers are cheap to build; the others' import forms, UFL or mpi4py (``_parser``)
 _CHEAP = ("run", "schema")
@@ -108,11 +136,14 @@ def _command(argv: list[str]) -> str | None:
 def _parser(prog: str, command: str | None) -> argparse.ArgumentParser:
     """The top-level parser. For ``run`` and ``schema`` (and a bare ``--version``) only their own parsers: verify's,
     sweep's and converge's import forms, UFL or mpi4py, a second and more that a bad configuration need not wait."""
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    from model.helptext import Formatter
+
+    parser = argparse.ArgumentParser(prog=prog, description=DESCRIPTION, epilog=EPILOG, formatter_class=Formatter)
     parser.add_argument("--version", action=_Version)
-    sub = parser.add_subparsers(dest="command", required=True)
-    run_parser = sub.add_parser("run", help="run a TOML configuration")
-    run_parser.add_argument("config", type=Path)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    run_parser = sub.add_parser("run", help="run a TOML configuration", description=RUN_DESCRIPTION,
+                                epilog=RUN_EPILOG, formatter_class=Formatter)
+    run_parser.add_argument("config", type=Path, help="the configuration file (TOML; docs/configuration.md)")
     run_parser.add_argument("--out", type=Path, default=None, help="output directory (overrides output.dir)")
     run_parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                             help="override a key of the file: dotted path, value as TOML (material.0.E=2e5, "
@@ -133,7 +164,12 @@ def _parser(prog: str, command: str | None) -> argparse.ArgumentParser:
 
         add_calibrate_parser(sub)
     schema_parser = sub.add_parser("schema", help="the JSON Schema of the configuration file and its key reference, "
-                                   "generated from model.config")
+                                   "generated from model.config", formatter_class=Formatter,
+                                   description="Writes the JSON Schema of a configuration file (for editors and "
+                                               "validators) and the Markdown reference of every key.",
+                                   epilog="examples:\n  softtissue schema > config.schema.json\n  softtissue schema "
+                                          "--out docs/config.schema.json --markdown docs/config.md "
+                                          "--membrane-out docs/membrane.schema.json")
     schema_parser.add_argument("--out", type=Path, default=None,
                                help="write the JSON Schema here (docs/config.schema.json; default: standard output "
                                     "unless --markdown is given)")

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 import shutil
@@ -188,3 +189,33 @@ def test_mpi_run_matches_serial(serial_run: tuple[subprocess.CompletedProcess, P
             assert b[key] == pytest.approx(a[key], rel=1e-10), key
     mesh = meshio.read(out / "step_0005.vtu")  # gathered on rank 0: the whole mesh
     assert mesh.points.shape == (125, 3) and len(mesh.cells[0].data) == 384
+
+
+def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return dict(actions[0].choices) if actions else {}
+
+
+def test_every_command_explains_itself() -> None:
+    """Every command's help renders with a description, examples and (where a command has them) exit codes; the
+    defaults are shown; verify emit needs neither --samples nor --seed."""
+    from model.cli import _parser
+
+    top = _parser("softtissue", None)
+    commands = {"": top}
+    for name, sub in _subparsers(top).items():
+        commands[name] = sub
+        commands.update({f"{name} {n}": s for n, s in _subparsers(sub).items()})
+    assert set(commands) >= {"", "run", "verify", "verify emit", "verify check", "verify seeds", "verify element",
+                             "sweep", "converge", "calibrate", "schema"}
+    for name, parser in commands.items():
+        text = parser.format_help()
+        assert "examples:" in text and len(parser.description or "") > 40, name
+    for name in ("", "run"):  # whole sentences (the top-level description was its docstring's first line, cut)
+        assert commands[name].description.rstrip().endswith("."), commands[name].description
+    assert "exit codes:" in commands["run"].format_help() and "mpirun -n 2" in commands["run"].format_help()
+    emit = commands["verify emit"]
+    assert "(default: 1000)" in emit.format_help() and "(default: 0)" in emit.format_help()
+    args = emit.parse_args(["--material", "neo_hookean", "--out", "ref.npz"])
+    assert (args.samples, args.seed) == (1000, 0)
+    assert "(default: 50)" in commands["calibrate"].format_help()

@@ -21,16 +21,18 @@ EXAMPLE = ("softtissue calibrate examples/calibration/specimen.toml --data examp
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """The ``calibrate`` parser, added to the top-level subparsers ``sub``; its handler is ``main``."""
+    from model.helptext import Formatter
+
     parser = sub.add_parser(
         "calibrate", help="fit law parameters to measured forces, displacements and volumes",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
         description="Fits law parameters of CONFIG (keys material.I.NAME) to measurements: minimises 1/2 sum w_i "
                     "(q_i - m_i)^2 over the load factors of the data with a bounded trust-region Gauss-Newton "
                     "(scipy least_squares, method trf), exact derivatives from UFL (one factorisation per measured "
                     "step), the forms compiled once. Writes calibration.json (fitted values, standard errors, "
                     "covariance, history), fit.csv, fit.png and fitted.toml to --out.",
         epilog=f"data file (CSV): columns load_factor, quantity, value and optionally sigma (standard deviation) or "
-               f"weight; quantities probe.NAME.x|y|z, reaction.BOUNDARY.x|y|z, volume.REGION.\n\nexample:\n  "
+               f"weight; quantities probe.NAME.x|y|z, reaction.BOUNDARY.x|y|z, volume.REGION.\n\nexamples:\n  "
                f"{EXAMPLE}\n\nexit codes: 0 written, 1 a forward solve failed, 2 bad input. On several ranks: "
                f"mpirun -n 2 softtissue calibrate ...")
     parser.add_argument("config", type=Path, help="the configuration file (its values are the start)")
@@ -42,8 +44,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                              "material.0.E=1e3:1e5; an empty end is open (material.0.nu=0:)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a key of the file first (TOML value), e.g. loading.steps=10")
-    parser.add_argument("--max-evaluations", type=int, default=50,
-                        help="most forward evaluations (default: %(default)s)")
+    parser.add_argument("--max-evaluations", type=int, default=50, help="most forward evaluations")
     parser.add_argument("--out", type=Path, default=None,
                         help="output folder (default: results/calibrate_<config name>)")
     parser.set_defaults(handler=main)

@@ -17,16 +17,21 @@ from model.errors import ConfigError
 EPILOG = ("values are TOML (1e4, true, \"text\", [0.1, 0]); a comma inside brackets belongs to an array: "
           "--set boundary.0.value=[0.1,0],[0.2,0]. Runs go to DIR/runs/HASH/, the table to DIR/sweep.csv "
           "(and sweep.parquet with pyarrow); sweeping again skips completed runs.\n"
-          "exit codes: 0 all runs completed, 1 some failed (table written), 2 bad input (nothing run)")
+          "exit codes: 0 all runs completed, 1 some failed (table written), 2 bad input (nothing run)\n\n"
+          "examples:\n  softtissue sweep examples/uniaxial.toml --set material.0.E=1e4,2e4,4e4 --out results/sweep_E\n"
+          "  softtissue sweep examples/uniaxial.toml --set material.0.E=1e4,2e4 --set material.0.nu=0.3,0.45 --zip "
+          "--jobs 2 --out results/sweep_zip")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """The ``sweep`` sub-command."""
+    from model.helptext import Formatter
+
     parser = subparsers.add_parser("sweep", help="run a configuration for many values of some keys, one table",
                                    description="run a configuration for many values of some keys (child processes, one "
                                    "per run) and "
                                    "collect their results in one table (docs/studies.md)", epilog=EPILOG,
-                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+                                   formatter_class=Formatter)
     parser.add_argument("config", type=Path)
     parser.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=V1,V2,...",
                         help="a dotted key and its values (repeat for more keys)")
@@ -36,7 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     mode.add_argument("--zip", dest="mode", action="store_const", const="zip",
                       help="the i-th values of every key together (equal numbers of values)")
     parser.set_defaults(mode="grid")
-    parser.add_argument("--jobs", type=int, default=1, help="runs at a time (default 1)")
+    parser.add_argument("--jobs", type=int, default=1, help="runs at a time")
     parser.add_argument("--out", type=Path, required=True, help="the sweep's folder")
     return parser
 

@@ -88,16 +88,26 @@ def _law_options(parser: argparse.ArgumentParser, required: bool) -> None:
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """The ``verify`` parser and its subcommands, added to the top-level subparsers ``sub``."""
-    formatter = argparse.RawDescriptionHelpFormatter
+    from model.helptext import Formatter as formatter
     verify = sub.add_parser("verify", help="reference values of psi, P, A and checks of hand-derived formulas",
                             description="Reference values of psi, P = dpsi/dF and A = dP/dF through the UFL forms, "
-                                        "and checks of your own.", epilog=epilog(), formatter_class=formatter)
+                                        "and checks of your own.",
+                            epilog="examples:\n  softtissue verify emit --material neo_hookean --param mu=1 --param "
+                                   "lmbda=10 --out ref.npz\n  softtissue verify check mine.npz\n  softtissue verify "
+                                   "element my_tet10.json\n\n" + epilog(), formatter_class=formatter)
     vsub = verify.add_subparsers(dest="verify_command", required=True)
     emit_parser = vsub.add_parser("emit", help="write reference psi, P, A computed through the UFL forms",
-                                  epilog=epilog(), formatter_class=formatter)
+                                  description="Writes reference values of psi, P and A at sampled deformation "
+                                              "gradients (a quarter of them inverted where the law allows), for "
+                                              "your own code to evaluate at the same F and fields.",
+                                  epilog="examples:\n  softtissue verify emit --material neo_hookean --param mu=1 "
+                                         "--param lmbda=10 --out ref.npz\n  softtissue verify emit --energy "
+                                         "my_law.py:psi --param C=2 --samples 5000 --out ref.csv\n\n" + epilog(),
+                                  formatter_class=formatter)
     _law_options(emit_parser, required=True)
-    emit_parser.add_argument("--samples", type=int, required=True)
-    emit_parser.add_argument("--seed", type=int, required=True)
+    emit_parser.add_argument("--samples", type=int, default=1000, help="number of deformation gradients")
+    emit_parser.add_argument("--seed", type=int, default=0, help="random seed of the samples (the same seed, the same "
+                                                                 "samples)")
     emit_parser.add_argument("--out", type=Path, required=True,
                              help="the file written: this path when it is a directory (.npy files) or ends in "
                                   ".npz, .csv or .json (the format), else this path with .npz appended (printed)")
@@ -109,7 +119,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     emit_parser.add_argument("--at-breakpoints", action="store_true",
                              help="keep samples where the tangent is undefined (fibre stretch 1, ...)")
     check_parser = vsub.add_parser("check", help="compare a file's psi, P and/or A with the reference",
-                                   epilog=epilog(), formatter_class=formatter)
+                                   description="Compares your psi, P and/or A in FILE (with its F and fields) with "
+                                               "the reference, says where they differ and names the cause when one "
+                                               "explains every failing sample.",
+                                   epilog="examples:\n  softtissue verify check mine.npz\n  softtissue verify check "
+                                          "mine.csv --material neo_hookean --param mu=1 --param lmbda=10 --rtol 1e-4"
+                                          "\n\n" + epilog(), formatter_class=formatter)
     check_parser.add_argument("file", type=Path)
     check_parser.add_argument("--rtol", type=float, default=1e-8,
                               help="relative tolerance per sample: |yours - ref| <= rtol max(|ref|, M) + atol, M the "
@@ -120,8 +135,14 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     check_parser.add_argument("--projected", action="store_true",
                               help="your tangent is PSD-projected (9x9 eigenvalues clamped at 0): compare it "
                                    "with the projection of the reference")
-    seeds_parser = vsub.add_parser("seeds", help="check the formulas printed in the seed documents")
-    seeds_parser.add_argument("--json", type=Path, default=None)
+    seeds_parser = vsub.add_parser("seeds", help="check the formulas printed in the seed documents",
+                                   description="Evaluates the stress and tangent formulas as printed in three source "
+                                               "documents (docs/verify.md) against the reference, and their "
+                                               "corrections.",
+                                   epilog="examples:\n  softtissue verify seeds\n  softtissue verify seeds --json "
+                                          "seeds.json\n\nexit code: 0 when the table was produced (a disagreement is "
+                                          "a finding)", formatter_class=formatter)
+    seeds_parser.add_argument("--json", type=Path, default=None, help="also write the table as JSON here")
     if importlib.util.find_spec("model.verify.element") is not None:  # `verify element FILE`
         from model.verify import element
 

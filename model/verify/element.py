@@ -795,13 +795,16 @@ def _parse_order(text: str | None) -> NodeOrder | None:
 def add_parser(subparsers: Any) -> None:
     """``verify element FILE [--rtol] [--material] [--param KEY=VALUE] [--node-order] [--quadrature-degree]
     [--emit OUT]`` on the verify subcommands."""
+    from model.helptext import Formatter
     from model.verify.commands import laws_help
 
     epilog = (laws_help("laws (--material NAME, or FILE.py:FUNCTION, a UFL energy of your own):")
-              + "\nexit codes: 0 agrees, 1 out of tolerance, 2 bad input")
+              + "\nexit codes: 0 agrees, 1 out of tolerance, 2 bad input\n\nexamples:\n  softtissue verify element "
+              "my_tet10.json\n  softtissue verify element my_hex8.npz --material neo_hookean --param mu=1 --param "
+              "lmbda=10 --rtol 1e-10")
     parser = subparsers.add_parser("element", help="check an element's force vector f and stiffness matrix K "
                                    "(tet4, tet10, hex8) against dolfinx on that one cell", description=HELP,
-                                   epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter)
+                                   epilog=epilog, formatter_class=Formatter)
     parser.add_argument("file", type=Path, help="the element: .json or .npz (layout above)")
     parser.add_argument("--rtol", type=float, default=1e-8, help="relative Frobenius tolerance (default 1e-8)")
     parser.add_argument("--material", default=None, help="the law (a built-in name or FILE.py:FUNCTION), when the "
