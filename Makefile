@@ -10,7 +10,7 @@ export OPENBLAS_NUM_THREADS := 1
 export OMP_NUM_THREADS := 1
 MPIRUN := mpirun -n 2 --oversubscribe
 
-.PHONY: setup system demo test test-serial test-mpi test-release lint benchmark release-data compare-releases clean
+.PHONY: notebooks setup system demo test test-serial test-mpi test-release lint benchmark release-data compare-releases clean
 
 #: 12 or 13: the Debian release this machine runs (the CI legs write their release data apart)
 DEBIAN := $(shell . /etc/os-release 2>/dev/null && echo $$VERSION_ID)
@@ -72,6 +72,19 @@ RELEASE_MPI_TESTS := $(addprefix tests/test_,$(addsuffix .py,parallel mesh_files
 test-release: setup
 	$(TEST_JIT) $(PY) -m pytest -q -n 2 --durations=10 $(RELEASE_TESTS)
 	$(TEST_JIT) $(MPIRUN) $(PY) -m pytest -q -p no:cacheprovider --durations=10 $(RELEASE_MPI_TESTS)
+
+#: Executed Jupyter notebooks (.ipynb, with their outputs and pictures) of notebooks/*.py in results/notebooks/,
+#: which git ignores; installs the extra [notebooks] (jupytext, nbconvert, ipykernel) into .venv first.
+#: NOTEBOOK=isometric for one of them; CI=true for their short versions (what the tests run).
+NOTEBOOKS := $(filter-out notebooks/_%,$(wildcard notebooks/*.py))
+notebooks: setup
+	$(PY) -m pip install -q -c $(VENV)/constraints.txt -e '.[notebooks]'
+	mkdir -p results/notebooks
+	for nb in $(if $(NOTEBOOK),notebooks/$(NOTEBOOK).py,$(NOTEBOOKS)); do \
+	  out=results/notebooks/$$(basename $$nb .py).ipynb; echo "$$nb -> $$out"; \
+	  $(VENV)/bin/jupytext --to ipynb --execute --run-path notebooks --output $$out $$nb || exit 1; \
+	done
+	@echo "open them with: .venv/bin/pip install jupyterlab && .venv/bin/jupyter lab results/notebooks"
 
 lint: setup
 	$(PY) -m ruff check forms model meshes tests benchmarks notebooks examples
