@@ -188,6 +188,8 @@ def test_cook_study_writes_tables_and_plot(shared_tmp: Path) -> None:
     markdown = files["markdown"].read_text()
     assert "## probe:top_right:y" in markdown and "| GCI_fine^21 (%) |" in markdown and "dofs" in markdown
     assert files["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert list(meshes["folder"]) == ["mesh_2", "mesh_1", "mesh_0"] and "[mesh_0](mesh_0/summary.json)" in markdown
+    assert meshes["estimated_wall_time_s"].notna().sum() == 1  # the third mesh's, from the first two
     MPI.COMM_WORLD.barrier()
 
 
@@ -216,3 +218,29 @@ def test_command_line(tmp_path: Path) -> None:
     bad = subprocess.run([*command[:6], "mesh.cells=2,4", "--qoi", "energy"], capture_output=True, text=True,
                          env=environment(), cwd=tmp_path, timeout=600)
     assert bad.returncode == 2 and "three values or more" in bad.stdout + bad.stderr, bad.stdout + bad.stderr
+
+
+def test_an_order_far_from_the_formal_one_widens_the_band() -> None:
+    """p = 1.2 against a formal order 2: a warning that says why it may be, and the GCI with the safety factor 3 and
+    the order min(p, 2) (wider than Celik's 1.25 with p); p = 2.3 (within 0.5): neither."""
+    h = [0.1, 0.2, 0.4]
+    low = gci(h, [1.0 + 0.5 * x ** 1.2 for x in h], formal_order=2)
+    assert any("differs from the formal order 2" in w and "singularity" in w for w in low.warnings), low.warnings
+    plain = gci(h, [1.0 + 0.5 * x ** 1.2 for x in h])
+    assert low.gci_safety_factor == 3.0 and low.gci_order == pytest.approx(1.2, rel=1e-9)
+    assert low.gci_fine21 == pytest.approx(plain.gci_fine21 * 3.0 / 1.25, rel=1e-9)
+    close = gci(h, [1.0 + 0.5 * x ** 2.3 for x in h], formal_order=2)
+    assert not any("differs" in w for w in close.warnings) and close.gci_safety_factor == 1.25
+    high = gci(h, [1.0 + 0.5 * x ** 3.5 for x in h], formal_order=2)  # the band uses the formal order 2 < p
+    assert high.gci_order == 2 and high.gci_fine21 > gci(h, [1.0 + 0.5 * x ** 3.5 for x in h]).gci_fine21
+
+
+def test_the_next_meshs_cost_is_estimated_from_the_previous_ones() -> None:
+    from model.studies.convergence import estimated_wall_time, refinement_measure
+
+    assert refinement_measure("mesh.size", 0.5) == pytest.approx(8.0)
+    assert refinement_measure("mesh.cells", [2, 3, 4]) == 24.0 and refinement_measure("mesh.cells", 4) == 64.0
+    # wall time ~ N^1.5 through the last two meshes (N = n^3): 10 s at n = 4, 10 * 8^1.5 at n = 8 -> n = 16
+    assert estimated_wall_time("mesh.cells", [4, 8], [10.0, 10.0 * 8 ** 1.5], 16) == pytest.approx(10.0 * 64 ** 1.5)
+    assert estimated_wall_time("mesh.cells", [8], [10.0], 16) is None
+    assert estimated_wall_time("mesh.cells", [4, 8], [10.0, 5.0], 16) == pytest.approx(5.0 * 8.0)  # b at least 1

@@ -37,6 +37,7 @@ obtained otherwise. ``study.write(out)`` writes convergence.csv (a row per QoI),
 from __future__ import annotations
 
 import json
+import logging
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -50,8 +51,14 @@ from mpi4py import MPI
 
 from model.errors import ConfigError
 
+log = logging.getLogger(__name__)
+
 #: Celik et al.'s safety factor for three-grid studies
 SAFETY_FACTOR = 1.25
+#: an observed order further than this from the formal one widens the GCI (WIDE_SAFETY_FACTOR, order min(p, formal))
+ORDER_DEVIATION = 0.5
+#: Roache's safety factor for estimates outside the asymptotic range (and for two-grid studies)
+WIDE_SAFETY_FACTOR = 3.0
 #: smallest refinement ratio Celik et al. recommend
 MIN_RATIO = 1.3
 #: differences between meshes below this fraction of |phi| are round-off, not discretization error
@@ -112,13 +119,17 @@ class GCIResult:
     asymptotic_ratio: float
     p_exact: float = math.nan
     warnings: tuple[str, ...] = ()
+    #: the safety factor and the order the GCIs were computed with (SAFETY_FACTOR and p, or widened)
+    gci_safety_factor: float = SAFETY_FACTOR
+    gci_order: float = math.nan
 
     def as_dict(self) -> dict[str, Any]:
         """A flat dict (h1..h3, phi1..phi3 and the scalar fields; warnings joined by "; ")."""
         out: dict[str, Any] = {f"h{i + 1}": v for i, v in enumerate(self.h)}
         out.update({f"phi{i + 1}": v for i, v in enumerate(self.phi)})
         for name in ("r21", "r32", "eps21", "eps32", "s", "p", "phi_ext21", "phi_ext32", "e_a21", "e_a32",
-                     "e_ext21", "e_ext32", "gci_fine21", "gci_medium32", "asymptotic_ratio", "p_exact"):
+                     "e_ext21", "e_ext32", "gci_fine21", "gci_medium32", "asymptotic_ratio", "p_exact",
+                     "gci_safety_factor", "gci_order"):
             out[name] = getattr(self, name)
         out["warnings"] = "; ".join(self.warnings)
         return out
@@ -163,6 +174,12 @@ def gci(h: Sequence[float], phi: Sequence[float], formal_order: float | None = N
             warnings.append(f"observed order p = {p:.3g} < 0.5")
         if formal_order is not None and p > 2 * formal_order:
             warnings.append(f"observed order p = {p:.3g} > 2 x the formal order {formal_order:g}")
+    widened = (formal_order is not None and not math.isnan(p) and abs(p - formal_order) > ORDER_DEVIATION)
+    if widened:
+        warnings.append(f"observed order p = {p:.3g} differs from the formal order {formal_order:g} by more than "
+                        f"{ORDER_DEVIATION:g}: a singularity (a clamped edge, a re-entrant corner, a point load) or "
+                        "meshes not yet in the asymptotic range; the GCI band is widened (safety factor "
+                        f"{WIDE_SAFETY_FACTOR:g}, order min(p, {formal_order:g})) and is itself uncertain")
     if min(r21, r32) < MIN_RATIO:
         warnings.append(f"refinement ratio {min(r21, r32):.3g} < {MIN_RATIO} (Celik et al. recommend more)")
     e_a21 = abs(eps21 / phi1) if phi1 != 0 else nan
@@ -177,7 +194,12 @@ def gci(h: Sequence[float], phi: Sequence[float], formal_order: float | None = N
         e_ext32 = abs((phi_ext32 - phi2) / phi_ext32) if phi_ext32 != 0 else nan
         gci21 = safety_factor * e_a21 / (f21 - 1)
         gci32 = safety_factor * e_a32 / (f32 - 1)
-        ratio = gci32 / (f21 * gci21) if gci21 > 0 else nan
+        ratio = gci32 / (f21 * gci21) if gci21 > 0 else nan  # with the observed p: is it asymptotic?
+        if widened:
+            order = min(p, float(formal_order))  # a smaller order, a wider band
+            safety_factor = WIDE_SAFETY_FACTOR
+            gci21 = safety_factor * e_a21 / (r21 ** order - 1)
+            gci32 = safety_factor * e_a32 / (r32 ** order - 1)
         if not math.isnan(ratio) and abs(ratio - 1) > ratio_tolerance:
             warnings.append(f"asymptotic ratio GCI32/(r21^p GCI21) = {ratio:.3g}, not within {ratio_tolerance:g} "
                             "of 1: the meshes may not be in the asymptotic range")
@@ -187,7 +209,8 @@ def gci(h: Sequence[float], phi: Sequence[float], formal_order: float | None = N
         if d1 > 0 and d2 > 0:
             p_exact = math.log(d2 / d1) / math.log(r21)
     return GCIResult((h1, h2, h3), (phi1, phi2, phi3), r21, r32, eps21, eps32, s, p, phi_ext21, phi_ext32,
-                     e_a21, e_a32, e_ext21, e_ext32, gci21, gci32, ratio, p_exact, tuple(warnings))
+                     e_a21, e_a32, e_ext21, e_ext32, gci21, gci32, ratio, p_exact, tuple(warnings),
+                     safety_factor, min(p, float(formal_order)) if widened else p)
 
 
 @dataclass(frozen=True)
@@ -302,7 +325,9 @@ class ConvergenceStudy:
             lines += [f"- warning: {w}" for w in r.warnings] + ([""] if r.warnings else [])
         lines += ["## Meshes", ""]
         columns = list(self.meshes.columns)
-        lines += _markdown_table(columns, [tuple(_fmt(v) for v in row) for row in self.meshes.itertuples(index=False)])
+        rows = [tuple(f"[{v}]({v}/summary.json)" if c == "folder" and isinstance(v, str) else _fmt(v)
+                      for c, v in zip(columns, row)) for row in self.meshes.itertuples(index=False)]
+        lines += _markdown_table(columns, rows)
         return "\n".join(lines) + "\n"
 
     def plot(self, path: Path) -> Path:
@@ -328,6 +353,9 @@ class ConvergenceStudy:
                 hs = np.array([h[ok].min(), h[ok].max()])
                 if e1 > 0:
                     ax.loglog(hs, e1 * (hs / r.h[0]) ** r.p, "k--", label=f"slope p = {r.p:.2f}")
+                    if self.formal_order is not None:  # what the discretisation promises, through the same point
+                        ax.loglog(hs, e1 * (hs / r.h[0]) ** self.formal_order, ":", color="C3",
+                                  label=f"formal order {self.formal_order:g}")
             if not np.isfinite(r.p):
                 ax.text(0.5, 0.5, "no observed order\n(see the warnings)", ha="center", va="center",
                         transform=ax.transAxes)
@@ -423,7 +451,13 @@ def converge(config: str | Path | Mapping[str, Any], refine: Mapping[str, Sequen
                               f"{', '.join(sorted(probes)) or 'none'})")
     records = []
     for k, (value, cfg) in enumerate(zip(values, configs)):
-        record: dict[str, Any] = {key: value if isinstance(value, (int, float, str)) else json.dumps(value)}
+        record: dict[str, Any] = {key: value if isinstance(value, (int, float, str)) else json.dumps(value),
+                                  "folder": f"mesh_{k}"}
+        estimate = estimated_wall_time(key, values[:k], [r["wall_time_s"] for r in records], value)
+        record["estimated_wall_time_s"] = estimate
+        if estimate is not None and comm.rank == 0:
+            log.info("mesh_%d (%s = %s): estimated %s from the previous meshes' wall times", k, key, value,
+                     _duration(estimate))
         try:
             summary = run(cfg, directory / f"mesh_{k}", comm)
             status = summary["status"]
@@ -443,6 +477,38 @@ def converge(config: str | Path | Mapping[str, Any], refine: Mapping[str, Sequen
                                         refine_key=key, ratio_tolerance=ratio_tolerance)
     study.write(directory, comm)
     return study
+
+
+def refinement_measure(key: str, value: Any) -> float | None:
+    """A number proportional to a mesh's cell count from the refined key's value: a size (a key ending in "size")
+    as size^-3, a cell count per edge as n^3, a list of counts as their product; None when it cannot tell."""
+    try:
+        if isinstance(value, (list, tuple)):
+            return float(np.prod([float(v) for v in value]))
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    if number <= 0:
+        return None
+    return number ** -3 if key.rsplit(".", 1)[-1].endswith("size") else number ** 3
+
+
+def estimated_wall_time(key: str, previous: Sequence[Any], seconds: Sequence[float], value: Any) -> float | None:
+    """The next mesh's wall time from the previous ones: wall time ~ N^b fitted through the last two meshes
+    (N the refinement_measure of the key's value; b at least 1); None with fewer than two or no measure."""
+    if len(previous) < 2:
+        return None
+    measures = [refinement_measure(key, v) for v in (*previous[-2:], value)]
+    times = list(seconds[-2:])
+    if any(m is None for m in measures) or any(not (t > 0) for t in times) or measures[0] == measures[1]:
+        return None
+    n0, n1, n2 = measures
+    b = max(1.0, math.log(times[1] / times[0]) / math.log(n1 / n0))
+    return float(times[1] * (n2 / n1) ** b)
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
 
 
 def _read_summary(directory: Path, comm: MPI.Comm) -> dict[str, Any]:
