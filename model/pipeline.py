@@ -70,7 +70,7 @@ from model.output.checkpoint import read_checkpoint, remove_checkpoint, write_ch
 from model.output.writer import SUMMARY, ResultWriter, discard, named, on_rank0, remove_earlier_run, write_json_atomic
 from model.problem import ElasticityProblem
 from model.problem.conflicts import Condition, Load, check_conditions
-from model.problem.measurements import Volumes, reactions
+from model.problem.measurements import Volumes, reactions, shared_reactions
 from model.problem.parameters import candidates
 from model.signals import Interrupted, StopFlag
 from model.solvers import linear, stability
@@ -810,6 +810,10 @@ def _run(config: RunConfig, out: Path | None, comm: MPI.Comm, objective: bool | 
             step["probes"] = setup.probes.evaluate(problem.displacement())
             residual = solver.unconstrained_residual()
             step["reactions"] = reactions(problem, residual)
+            exclusive, shared = shared_reactions(problem, residual)
+            if shared:  # dofs two boundaries constrain count in both reactions: what each has alone, what they share
+                step["reactions_exclusive"] = exclusive
+                step["reactions_shared"] = shared
             residual.destroy()
             if setup.contacts:
                 from model.problem.contact import contact_report, pair_reports

@@ -48,6 +48,7 @@ MODES = ("grid", "zip")
 COMPONENTS = ("x", "y", "z")
 #: step entries that are not numbers of the table (or are spread into columns of their own)
 _SKIP = {"converged", "snes_reason", "snes_reason_name", "probes", "reactions", "volumes", "activation",
+         "reactions_exclusive", "reactions_shared",
          "contact", "sliding", "largest_residual"}
 
 
