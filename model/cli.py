@@ -259,10 +259,48 @@ def _main(argv: list[str], prog: str) -> int:
         _error(str(err))
         return 1
     if _rank() == 0:
-        last = summary["steps"][-1]
-        print(f"done: {len(summary['steps'])} steps, {summary['dofs']} dofs, {summary['wall_time_s']:.1f} s; "
-              f"probes {last.get('probes', {})}")
+        out = args.restart if args.restart is not None else args.out if args.out is not None else config.output.dir
+        print(run_summary(summary, Path(out)))
     return 0
+
+
+def _vector(values: list[float], unit: str) -> str:
+    return "(" + ", ".join(f"{v:.4g}" for v in values) + ")" + (f" {unit}" if unit else "")
+
+
+def run_summary(summary: dict, out: Path) -> str:
+    """The lines a run ends with: status, steps (and cut-backs), dofs and time; at the last converged step each
+    probe's displacement and each boundary's reaction with their units, the volume change of each region; the
+    warnings' count; where the results are."""
+    steps = summary.get("steps", [])
+    converged = [s for s in steps if s.get("converged")]
+    units = summary.get("units", {})
+    length, force = units.get("length", ""), units.get("force", "")
+    failed = len(steps) - len(converged)
+    lines = [f"done: {len(converged)} steps ({summary.get('status', '?')}"
+             + (f", {failed} cut back" if failed else "") + f"), {summary.get('dofs', 0):,} dofs, "
+             f"{summary.get('wall_time_s', 0.0):.1f} s"]
+    if converged:
+        last = converged[-1]
+        what = f"t = {last['time']:.4g}" if "time" in last else f"load factor {last['load_factor']:.4g}"
+        lines.append(f"at {what}:")
+        for name, u in last.get("probes", {}).items():
+            lines.append(f"  probe {name}: u = {_vector(u, length)}")
+        for name, f in last.get("reactions", {}).items():
+            lines.append(f"  reaction of {name}: F = {_vector(f, force)}")
+        for name, f in last.get("reactions_shared", {}).items():
+            lines.append(f"    shared by {name} (in both reactions above): F = {_vector(f, force)}")
+        rest = summary.get("region_volumes", {})
+        changes = [f"{name} {100 * (v / rest[name] - 1):+.3g} %" for name, v in last.get("volumes", {}).items()
+                   if rest.get(name)]
+        if changes:
+            lines.append("  volume change: " + ", ".join(changes))
+    warnings = summary.get("warnings", [])
+    if warnings:
+        lines.append(f"{len(warnings)} warning{'s' if len(warnings) > 1 else ''} (printed above, and in summary.json)")
+    lines.append(f"results in {out}: summary.json" + (", results.xdmf" if "results.xdmf" in summary.get("files", [])
+                                                      else "") + (f", {summary['png']}" if summary.get("png") else ""))
+    return "\n".join(lines)
 
 
 def _membrane(args: argparse.Namespace, overrides: dict) -> int:

@@ -59,7 +59,11 @@ def test_run_prints_progress(serial_run: tuple[subprocess.CompletedProcess, Path
         assert float(residual) == pytest.approx(step["residual_norm"], rel=1e-3)
         assert status == "converged"
     assert [float(m.group(2)) for m in progress] == pytest.approx([0.2, 0.4, 0.6, 0.8, 1.0])
-    assert result.stdout.splitlines()[-1].startswith("done: 5 steps")
+    tail = result.stdout.splitlines()[-8:]  # the human summary: status, probes and reactions with units, the folder
+    assert any(line.startswith("done: 5 steps (completed), 375 dofs") for line in tail), tail
+    assert any(line.startswith("  probe corner: u = (") and line.endswith(") m") for line in tail), tail
+    assert any(line.startswith("  reaction of xmin: F = (-2000,") and line.endswith(") N") for line in tail), tail
+    assert tail[-1].startswith(f"results in {out}: summary.json"), tail
 
 
 def test_run_writes_the_contract_summary(serial_run: tuple[subprocess.CompletedProcess, Path]) -> None:

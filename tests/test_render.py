@@ -63,3 +63,39 @@ def test_colour_bar_is_whole_and_inside_the_image(tmp_path: Path) -> None:
     # the title of the bar sits above it, inside the image, left of the margin
     above = differs[int((1 - y1) * height) - 40:int((1 - y1) * height), int(0.7 * width):]
     assert above.any(), "no colour bar title"
+
+
+def test_magnification_makes_small_displacements_visible() -> None:
+    from model.output.render import magnification
+
+    assert magnification(0.000663, 0.146) == 20.0  # the demo: 0.66 mm on 146 mm -> x 20 (22 wanted)
+    assert magnification(0.2, 1.0) == 1.0 and magnification(0.0, 1.0) == 1.0  # large enough, or none
+    assert magnification(1e-6, 1.0) == 1e5 and magnification(3e-4, 1.0) == 200.0
+    assert figure_title("load factor 1", 0.000663, "m", 20.0).endswith("displacements x 20")
+
+
+def test_small_displacements_are_magnified_over_the_undeformed_outline_and_framed(tmp_path: Path) -> None:
+    """A body that barely moves (0.07 % of its size) is drawn magnified (x 100), with the undeformed body's light grey
+    silhouette showing beside it, the orientation triad in the lower left, and the body filling most of the
+    width left of the colour bar."""
+    Image = pytest.importorskip("PIL.Image")
+    vtu, png = tmp_path / "tiny.vtu", tmp_path / "tiny.png"
+    corners = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], dtype=float) * [3.0, 1.0, 1.0]
+    cells = np.array([[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]])
+    u = 0.002 * corners[:, [2]] * np.array([1.0, 0.0, 0.0])  # largest |u| 0.002 on a body 3 long: x 100
+    meshio.Mesh(corners, [("tetra", cells)], point_data={"u": u},
+                cell_data={"von_mises": [np.linspace(1.0, 2.0, len(cells))]}).write(vtu)
+    try:
+        render_in_subprocess(vtu, png, "load factor 1", "Pa", "m", timeout=120)
+    except RuntimeError as err:
+        pytest.skip(f"no off-screen rendering: {err}")
+    image = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    height, width, _ = image.shape
+    body = image[:, : int(SCALAR_BAR["position_x"] * width)]
+    grey = (np.abs(body - body[..., [0]]).max(axis=2) < 6) & (body[..., 0] > 150) & (body[..., 0] < 235)
+    coloured = np.abs(body - body[..., [0]]).max(axis=2) > 40  # viridis: not grey
+    assert grey.sum() > 500, "no undeformed silhouette beside the deformed body"
+    columns = np.flatnonzero(coloured[int(0.1 * height):int(0.85 * height)].any(axis=0))
+    assert np.ptp(columns) > 0.6 * body.shape[1], "the body does not fill the width left of the colour bar"
+    triad = np.abs(image[int(0.8 * height):, : int(0.2 * width)] - image[-1, 0]).sum(axis=2) > 60
+    assert triad.sum() > 50, "no orientation triad in the lower left"
