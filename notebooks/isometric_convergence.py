@@ -31,9 +31,9 @@
 # 2.2 mm (the finest, about 48,000 cells and 230,000 unknowns, takes about 5 minutes on 2 cores).
 # With `CI` set it runs a cheaper study of the same problem in about 3.5 minutes on one core: meshes of 4,
 # 3.4 and 2.9 mm (refinement ratios 1.20 and 1.15 in h, so the study warns that they are below 1.3) and one
-# load step (the answer at full activation does not depend on the steps; Newton gets there in one). Not P1 elements: on these
-# meshes P1 displacements seem converged (tendon force 43.880, 43.963, 43.968 N: observed order 10)
-# but to a value 0.5 % above the P2/P1 one, the stiffness of linear tetrahedra at ν = 0.45: a GCI
+# load step (the answer at full activation does not depend on the steps; Newton gets there in one). Not
+# P1 elements: on these meshes P1 displacements seem converged (tendon force 43.880, 43.963, 43.968 N:
+# observed order 10) but to a value 0.5 % above the P2/P1 one, the stiffness of linear tetrahedra at ν = 0.45: a GCI
 # estimates the discretization error of the element it is given, not the element's own bias. The
 # command line:
 #
