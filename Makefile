@@ -54,7 +54,7 @@ test: test-serial test-mpi
 
 #: The tests of what differs between dolfinx releases (model/compat.py's paths: meshes and their files, every law
 #: assembled and solved, expressions, outputs, the solvers' presets and nested blocks, contact, membranes, verify,
-#: a cold JIT cache, MPI), serially (and some on 2 ranks): CI's Debian 13 leg (.ci/run), 587 of 1,862 tests,
+#: a cold JIT cache, MPI), serially (and some on 2 ranks): CI's Debian 13 leg (.ci/run), 592 of 1,909 tests,
 #: with the cross-release comparison of five runs and every law's verify references (make release-data). The
 #: whole suite on Debian 13: bash .ci/debian13 test.
 RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian energies mesh_files meshes \
@@ -62,7 +62,7 @@ RELEASE_TESTS := $(addprefix tests/test_,$(addsuffix .py,homogeneous jacobian en
   linear_presets scale_check loadstepping line_search petsc_options contact body_contact twin_muscles \
   self_contact membrane membrane_file verify_api verify_element verify_files cold_cache_arguments render \
   render_mesh config_errors mesh_checks admissibility path_following conflicts signals verify_diagnosis \
-  verify_speed compile_once parameter_curves calibration))
+  verify_speed compile_once parameter_curves calibration reactions_shared))
 
 #: Of these, on 2 ranks: the partition-dependent paths (distributed meshes and their files, outputs, the nested
 #: blocks' index sets, contact between bodies, the JIT cache shared by the ranks).
