@@ -37,7 +37,6 @@ setup: system $(VENV)/.installed
 
 demo: setup
 	$(VENV)/bin/softtissue run examples/isometric.toml --out results/demo
-	@echo "results and PNG in results/demo (deformed.png, results.xdmf, step_*.vtu, summary.json)"
 
 #: The tests compile their kernels with gcc -O0 (model/compat.py, SOFTTISSUE_JIT_CFLAGS): the suite is bound by
 #: compiling ~1,800 small-mesh kernels from a cold cache; 14 % less wall time on a cold-cache sample of six modules
