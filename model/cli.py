@@ -38,10 +38,9 @@ from model import signals
 DISTRIBUTION = "softtissue-reference"
 
 DESCRIPTION = textwrap.fill(
-    "The soft-tissue reference model: run a configuration (run), check your own stress and tangent "
-               "formulas against the reference (verify), sweep parameters (sweep), study mesh convergence "
-               "(converge), fit law parameters to measurements (calibrate), write the configuration schema "
-               "(schema). Each command has its own --help.", 100)
+    "The soft-tissue reference model: run a configuration (run), check your own stress and tangent formulas against "
+    "the reference (verify), sweep parameters (sweep), study mesh convergence (converge), fit law parameters to "
+    "measurements (calibrate), write the configuration schema (schema). Each command has its own --help.", 100)
 EPILOG = """examples:
   softtissue run examples/uniaxial.toml --out results/uniaxial
   softtissue verify emit --material neo_hookean --param mu=1 --param lmbda=10 --out ref.npz
@@ -50,10 +49,9 @@ EPILOG = """examples:
 exit codes: 0 done, 1 a solve failed or a check is out of tolerance, 2 bad input (one line naming the key),
 3 a bug of this program (the traceback's file is named), 130 / 143 stopped by SIGINT / SIGTERM"""
 RUN_DESCRIPTION = textwrap.fill(
-    "Runs a configuration: builds the mesh, the materials and the loads, checks them (one line naming "
-                   "the key on bad input, before any solve), solves with Newton and load stepping, and writes "
-                   "summary.json, XDMF, VTU and a PNG to the output folder after every converged step. A file with "
-                   "a [membrane] table is a membrane run.", 100)
+    "Runs a configuration: builds the mesh, the materials and the loads, checks them (one line naming the key on "
+    "bad input, before any solve), solves with Newton and load stepping, and writes summary.json, XDMF, VTU and a "
+    "PNG to the output folder after every converged step. A file with a [membrane] table is a membrane run.", 100)
 RUN_EPILOG = """examples:
   softtissue run examples/uniaxial.toml --out results/uniaxial
   softtissue run examples/uniaxial.toml --set material.0.E=2e5 --set loading.steps=20

@@ -71,7 +71,7 @@ from model.output.writer import SUMMARY, ResultWriter, discard, named, on_rank0,
 from model.problem import ElasticityProblem
 from model.problem.conflicts import Condition, Load, check_conditions
 from model.problem.measurements import Volumes, reactions, shared_reactions
-from model.problem.parameters import candidates
+from model.problem.parameters import candidates, curve_constants
 from model.signals import Interrupted, StopFlag
 from model.solvers import linear, stability
 from model.solvers.loadstepping import continuation, step_loads
@@ -101,10 +101,7 @@ def _parameter_curves(index: int, material: Any, problem: ElasticityProblem) -> 
     follow a curve)."""
     curves = material.parameter_curves
     held = problem.held_parameters[index]
-    base = candidates(problem.materials[index][1])
-    times = sorted({0.0, 1.0, *(t for c in curves.values() for t in c.checked_at)})
-    changing = {name for t in times for name, value in candidates(material.law_at(t)).items()
-                if value != base.get(name)}
+    changing = curve_constants(material)
     fixed = sorted(changing - set(held))
     if fixed:
         law = problem.materials[index][1].name

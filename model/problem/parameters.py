@@ -80,6 +80,18 @@ def candidates(law: Law) -> dict[str, float]:
     return {f.name: float(getattr(law, f.name)) for f in dataclasses.fields(law) if _is_number(getattr(law, f.name))}
 
 
+def curve_constants(material: Any) -> set[str]:
+    """The law constants a material's load curves change (model.config.MaterialConfig: ``parameter_curves``,
+    ``law_at``): those whose value at t = 1 or at a point of a curve's table differs from t = 0 (E(t) changes
+    mu and lmbda). What a curve's load hook sets at every step, and what nothing else may set."""
+    curves = material.parameter_curves
+    if not curves:
+        return set()
+    base = candidates(material.law_at(0.0))
+    times = sorted({0.0, 1.0, *(t for c in curves.values() for t in c.checked_at)})
+    return {name for t in times for name, value in candidates(material.law_at(t)).items() if value != base.get(name)}
+
+
 def _with(law: Law, held: dict[str, HeldParameter]) -> Law:
     """The law with the parameters ``held`` in place of its numbers."""
     values = getattr(law, "values", None)

@@ -81,7 +81,7 @@ from model.config.overrides import apply, split_path
 from model.errors import ConfigError, SolveFailed
 from model.pipeline import build, make_solver
 from model.problem.measurements import Volumes, reactions
-from model.problem.parameters import candidates
+from model.problem.parameters import candidates, curve_constants
 from model.solvers.loadstepping import continuation
 
 log = logging.getLogger(__name__)
@@ -264,36 +264,17 @@ def fit_parameters(config: RunConfig, keys: Sequence[str],
     return out
 
 
-def _held_names(config: RunConfig, parameter: FitParameter, values: Mapping[str, float]) -> dict[str, float]:
-    """{held constant name: d constant / d parameter} of one fitted key at ``values`` (central differences of the
-    law's own conversion)."""
+def _held_names(config: RunConfig, parameter: FitParameter, values: Mapping[str, float],
+                fitted: Sequence[FitParameter]) -> dict[str, float]:
+    """{held constant name: d constant / d parameter} of one fitted key at ``values`` (the ``fitted`` parameters'
+    values; central differences of the law's own conversion)."""
     material = config.materials[parameter.material]
     value = values[parameter.key]
     h = MAP_STEP * max(abs(value), 1e-300)
-    own = {p.name: values[p.key] for p in _fitted_of(values, parameter.material)}
+    own = {p.name: values[p.key] for p in fitted if p.material == parameter.material}
     plus = candidates(material.law_with({**own, parameter.name: value + h}))
     minus = candidates(material.law_with({**own, parameter.name: value - h}))
     return {n: (plus[n] - minus.get(n, plus[n])) / (2 * h) for n in plus if plus[n] != minus.get(n)}
-
-
-def _curve_names(material: Any) -> set[str]:
-    """The law constants a material's load curves change (what its load hook sets at every step)."""
-    curves = material.parameter_curves
-    if not curves:
-        return set()
-    base = candidates(material.law_at(0.0))
-    times = sorted({0.0, 1.0, *(t for c in curves.values() for t in c.checked_at)})
-    return {n for t in times for n, v in candidates(material.law_at(t)).items() if v != base.get(n)}
-
-
-def _fitted_of(values: Mapping[str, float], index: int) -> list[FitParameter]:
-    keys = values.keys()
-    out = []
-    for key in keys:
-        parts = split_path(key)
-        if parts[1] == index:
-            out.append(FitParameter(key, index, str(parts[2]), values[key], -math.inf, math.inf))
-    return out
 
 
 # --- forward model with sensitivities ------------------------------------------------------------------------------
@@ -385,7 +366,7 @@ class Calibration:
         for p in self.parameters:
             held = self.problem.held_parameters[p.material]
             try:
-                names = _held_names(self.config, p, start)
+                names = _held_names(self.config, p, start, self.parameters)
             except Exception as err:  # noqa: BLE001 -- the law's validation at the start +- h: say which
                 raise ConfigError(f"fit: {p.key}: {err}") from None
             outside = sorted(set(names) - set(held))
@@ -396,7 +377,7 @@ class Calibration:
                                   "parameter")
             if not names:
                 raise ConfigError(f"fit: {p.key}: the law does not depend on it")
-            curved = _curve_names(self.config.materials[p.material])
+            curved = curve_constants(self.config.materials[p.material])
             if set(names) & curved:
                 raise ConfigError(f"fit: {p.key} sets {', '.join(sorted(set(names) & curved))}, which a load curve "
                                   "of the same material sets too")
@@ -558,7 +539,7 @@ class Calibration:
         for p in self.parameters:
             total = vectors[next(iter(vectors))].duplicate()
             total.set(0.0)
-            for name, d in _held_names(self.config, p, values).items():
+            for name, d in _held_names(self.config, p, values, self.parameters).items():
                 total.axpy(d, vectors[(p.material, name)])
             out.append(total)
         for b in vectors.values():
